@@ -1,0 +1,181 @@
+//! Writes a simulated stream to a folder: ground truth as TUM, lidar as KITTI `.bin` with
+//! `times.txt`, 2D scans, IMU and odometry as CSV, and a top view of the world and route.
+//! The folder is written under a temporary name and renamed when complete, so a failed run
+//! never leaves half-written results.
+
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, bail};
+use sim::Simulation;
+use sim::sensors::{LaserScan, Message};
+
+/// Marks a folder as written by `vinebench simulate`, so a rerun may replace it.
+const MARKER: &str = ".vinebench-simulate";
+
+#[derive(Debug)]
+pub struct Dump {
+    target: PathBuf,
+    tmp: PathBuf,
+    gt: Option<BufWriter<File>>,
+    imu: Option<BufWriter<File>>,
+    odom: Option<BufWriter<File>>,
+    lidar_times: Option<BufWriter<File>>,
+    lidar_count: usize,
+    scans: [Option<BufWriter<File>>; 2],
+}
+
+fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
+    Ok(BufWriter::new(File::create(path).with_context(|| path.display().to_string())?))
+}
+
+impl Dump {
+    pub fn create(dir: &Path, sim: &Simulation) -> anyhow::Result<Self> {
+        if dir.exists() && !dir.join(MARKER).exists() && fs::read_dir(dir)?.next().is_some() {
+            bail!("{} exists and was not written by vinebench simulate; choose another --out", dir.display());
+        }
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+        let tmp = dir.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+        if tmp.exists() {
+            fs::remove_dir_all(&tmp)?;
+        }
+        fs::create_dir_all(tmp.join("lidar"))?;
+        File::create(tmp.join(MARKER))?;
+        crate::topview::draw(sim, &tmp.join("topview.png"))?;
+        Ok(Self {
+            target: dir.to_owned(),
+            tmp,
+            gt: None,
+            imu: None,
+            odom: None,
+            lidar_times: None,
+            lidar_count: 0,
+            scans: [None, None],
+        })
+    }
+
+    pub fn write(&mut self, message: &Message) -> anyhow::Result<()> {
+        match message {
+            Message::GroundTruth(m) => {
+                let w = open(&mut self.gt, &self.tmp.join("groundtruth.tum"), None)?;
+                let t = m.world_from_base.translation.vector;
+                let q = m.world_from_base.rotation.coords; // (i, j, k, w)
+                writeln!(
+                    w,
+                    "{} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
+                    seconds(m.stamp_ns),
+                    t.x,
+                    t.y,
+                    t.z,
+                    q.x,
+                    q.y,
+                    q.z,
+                    q.w
+                )?;
+            }
+            Message::Imu(m) => {
+                let header = "stamp_ns,ax_mps2,ay_mps2,az_mps2,gx_rps,gy_rps,gz_rps";
+                let w = open(&mut self.imu, &self.tmp.join("imu.csv"), Some(header))?;
+                let (a, g) = (m.accel_mps2, m.gyro_rps);
+                writeln!(w, "{},{},{},{},{},{},{}", m.stamp_ns, a.x, a.y, a.z, g.x, g.y, g.z)?;
+            }
+            Message::WheelOdometry(m) => {
+                let header = "stamp_ns,linear_mps,angular_rps,x_m,y_m,yaw_rad";
+                let w = open(&mut self.odom, &self.tmp.join("odom.csv"), Some(header))?;
+                let t = m.odom_from_base.translation.vector;
+                let yaw = m.odom_from_base.rotation.euler_angles().2;
+                writeln!(w, "{},{},{},{},{},{}", m.stamp_ns, m.linear_mps, m.angular_rps, t.x, t.y, yaw)?;
+            }
+            Message::Lidar(scan) => {
+                let times = open(&mut self.lidar_times, &self.tmp.join("lidar/times.txt"), None)?;
+                writeln!(times, "{}", seconds(scan.stamp_ns))?;
+                // KITTI velodyne format: x, y, z, reflectance in [0, 1], little-endian f32.
+                let mut bytes = Vec::with_capacity(scan.points.len() * 16);
+                for p in &scan.points {
+                    for v in [p.x, p.y, p.z, p.intensity / 255.0] {
+                        bytes.extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+                let path = self.tmp.join(format!("lidar/{:06}.bin", self.lidar_count));
+                fs::write(&path, bytes).with_context(|| path.display().to_string())?;
+                self.lidar_count += 1;
+            }
+            Message::Scan2d(scan) => {
+                let slot = &mut self.scans[scan.side as usize];
+                let path = self.tmp.join(format!("{}.csv", scan.side.name()));
+                let header = scan_header(scan);
+                let w = open(slot, &path, Some(&header))?;
+                write!(w, "{}", scan.stamp_ns)?;
+                for r in &scan.ranges_m {
+                    write!(w, ",{r}")?;
+                }
+                writeln!(w)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Flushes everything and moves the folder into place; returns its path.
+    pub fn finish(mut self) -> anyhow::Result<PathBuf> {
+        let writers = [&mut self.gt, &mut self.imu, &mut self.odom, &mut self.lidar_times];
+        for w in writers.into_iter().flatten() {
+            w.flush()?;
+        }
+        for w in self.scans.iter_mut().flatten() {
+            w.flush()?;
+        }
+        if self.target.exists() {
+            fs::remove_dir_all(&self.target).with_context(|| self.target.display().to_string())?;
+        }
+        fs::rename(&self.tmp, &self.target).with_context(|| self.target.display().to_string())?;
+        Ok(self.target.clone())
+    }
+}
+
+impl Drop for Dump {
+    fn drop(&mut self) {
+        // Only a dump that was not finished still has its temporary folder.
+        if self.tmp.exists() {
+            let _ = fs::remove_dir_all(&self.tmp);
+        }
+    }
+}
+
+fn open<'a>(slot: &'a mut Option<BufWriter<File>>, path: &Path, header: Option<&str>) -> anyhow::Result<&'a mut BufWriter<File>> {
+    if slot.is_none() {
+        let mut w = create(path)?;
+        if let Some(h) = header {
+            writeln!(w, "{h}")?;
+        }
+        *slot = Some(w);
+    }
+    Ok(slot.as_mut().expect("just opened"))
+}
+
+fn scan_header(scan: &LaserScan) -> String {
+    format!(
+        "# angle_min_rad={} angle_increment_rad={} time_increment_s={} range_min_m={} range_max_m={} (inf: no return)\nstamp_ns,ranges_m...",
+        scan.angle_min_rad, scan.angle_increment_rad, scan.time_increment_s, scan.range_min_m, scan.range_max_m
+    )
+}
+
+/// Seconds with nanosecond precision, as TUM files want them.
+fn seconds(ns: i64) -> String {
+    format!("{}.{:09}", ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000))
+}
+
+/// Length of the ground-truth path (sampled every 10 ms).
+pub fn path_length(sim: &Simulation) -> f64 {
+    let step = 10_000_000;
+    let mut length = 0.0;
+    let mut prev = sim.trajectory.pose(0).translation.vector;
+    let mut t = step;
+    while t <= sim.duration_ns() {
+        let p = sim.trajectory.pose(t).translation.vector;
+        length += (p - prev).norm();
+        prev = p;
+        t += step;
+    }
+    length
+}

@@ -1,0 +1,619 @@
+//! Simulator configuration: one TOML file (`configs/world.toml`) whose every key has a
+//! documented default, so the file is optional and any subset of it may be given.
+//!
+//! Unknown keys are errors (`deny_unknown_fields`), so a misspelt key names itself.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::error::SimError;
+
+/// The complete simulator configuration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimConfig {
+    /// Seed of the world's geometry (terrain, plants); the run's seed drives sensor noise.
+    pub world_seed: u64,
+    /// Ray-casting engine: `bvh` (the simulator's own) or `parry` (parry3d, a cross-check).
+    pub raycaster: RaycasterKind,
+    pub vineyard: VineyardConfig,
+    pub terrain: TerrainConfig,
+    pub robot: RobotConfig,
+    pub sensors: SensorsConfig,
+    /// Named routes; `s0`..`s3` reproduce the paper's scenarios.
+    pub scenarios: BTreeMap<String, RouteSpec>,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            world_seed: 1,
+            raycaster: RaycasterKind::Bvh,
+            vineyard: VineyardConfig::default(),
+            terrain: TerrainConfig::default(),
+            robot: RobotConfig::default(),
+            sensors: SensorsConfig::default(),
+            scenarios: RouteSpec::paper_scenarios(),
+        }
+    }
+}
+
+impl SimConfig {
+    /// Parses a TOML document; keys it leaves out keep their defaults. Scenarios given in
+    /// the document are added to (or replace) the paper's `s0`..`s3`.
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
+        let mut cfg: SimConfig = toml::from_str(text).map_err(|e| SimError::Config {
+            origin: origin.to_owned(),
+            message: e.message().to_owned() + &span_hint(text, e.span()),
+        })?;
+        for (name, spec) in RouteSpec::paper_scenarios() {
+            cfg.scenarios.entry(name).or_insert(spec);
+        }
+        cfg.validate().map_err(|message| SimError::Config {
+            origin: origin.to_owned(),
+            message,
+        })?;
+        Ok(cfg)
+    }
+
+    pub fn from_file(path: &Path) -> Result<Self, SimError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SimError::Io {
+            path: path.to_owned(),
+            source: e,
+        })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// Checks value ranges that serde cannot express; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let v = &self.vineyard;
+        positive("vineyard.row_length_m", v.row_length_m)?;
+        positive("vineyard.row_spacing_m", v.row_spacing_m)?;
+        positive("vineyard.plant_spacing_m", v.plant_spacing_m)?;
+        positive("vineyard.post_spacing_m", v.post_spacing_m)?;
+        if v.rows == 0 {
+            return Err("vineyard.rows = 0: need at least one row".into());
+        }
+        in_range("vineyard.growth_stage", v.growth_stage, 0.0, 4.0)?;
+        in_range("vineyard.plant_variation", v.plant_variation, 0.0, 1.0)?;
+        let t = &self.terrain;
+        positive("terrain.wavelength_m", t.wavelength_m)?;
+        positive("terrain.bump_wavelength_m", t.bump_wavelength_m)?;
+        positive("terrain.cell_m", t.cell_m)?;
+        non_negative("terrain.amplitude_m", t.amplitude_m)?;
+        non_negative("terrain.bump_amplitude_m", t.bump_amplitude_m)?;
+        let r = &self.robot;
+        positive("robot.max_speed_mps", r.max_speed_mps)?;
+        positive("robot.max_yaw_rate_rps", r.max_yaw_rate_rps)?;
+        positive("robot.max_accel_mps2", r.max_accel_mps2)?;
+        positive("robot.max_yaw_accel_rps2", r.max_yaw_accel_rps2)?;
+        positive("robot.lookahead_m", r.lookahead_m)?;
+        let s = &self.sensors;
+        positive("sensors.ground_truth.rate_hz", s.ground_truth.rate_hz)?;
+        positive("sensors.imu.rate_hz", s.imu.rate_hz)?;
+        positive("sensors.wheel_odometry.rate_hz", s.wheel_odometry.rate_hz)?;
+        positive("sensors.lidar.rate_hz", s.lidar.rate_hz)?;
+        if s.lidar.columns == 0 || s.lidar.rings == 0 {
+            return Err("sensors.lidar: columns and rings must be positive".into());
+        }
+        for (name, l) in [("front", &s.scan2d_front), ("back", &s.scan2d_back)] {
+            positive(&format!("sensors.scan2d_{name}.rate_hz"), l.rate_hz)?;
+            if l.samples < 2 {
+                return Err(format!("sensors.scan2d_{name}.samples = {}: need at least 2", l.samples));
+            }
+        }
+        for (name, route) in &self.scenarios {
+            route.validate().map_err(|e| format!("scenarios.{name}: {e}"))?;
+        }
+        Ok(())
+    }
+}
+
+fn span_hint(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+    span.map(|s| {
+        let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+        format!(" (line {line})")
+    })
+    .unwrap_or_default()
+}
+
+fn positive(key: &str, v: f64) -> Result<(), String> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{key} = {v}: must be a positive number"))
+    }
+}
+
+fn non_negative(key: &str, v: f64) -> Result<(), String> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{key} = {v}: must be zero or positive"))
+    }
+}
+
+fn in_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(format!("{key} = {v}: must lie in [{lo}, {hi}]"))
+    }
+}
+
+/// Which ray caster the sensors use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum RaycasterKind {
+    #[default]
+    Bvh,
+    Parry,
+}
+
+/// The vine block: rows along the world x axis, starting at x = 0, the first row at y = 0.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VineyardConfig {
+    pub rows: usize,
+    pub row_length_m: f64,
+    pub row_spacing_m: f64,
+    pub plant_spacing_m: f64,
+    pub post_spacing_m: f64,
+    pub post_height_m: f64,
+    /// Trellis wire heights above the ground; the lowest carries the cordons.
+    pub wire_heights_m: Vec<f64>,
+    /// Ground beyond the block's rows where the robot turns, on every side.
+    pub headland_m: f64,
+    /// 0 dormant wood, 1 bud burst, 2 shoots, 3 dense canopy, 4 full canopy with grapes.
+    pub growth_stage: f64,
+    /// 0: every plant an identical clone (the paper); 1: every plant's geometry differs.
+    pub plant_variation: f64,
+}
+
+impl Default for VineyardConfig {
+    fn default() -> Self {
+        Self {
+            rows: 9,
+            row_length_m: 18.0,
+            row_spacing_m: 3.0,
+            plant_spacing_m: 1.0,
+            post_spacing_m: 6.0,
+            post_height_m: 1.9,
+            wire_heights_m: vec![0.9, 1.3, 1.7],
+            headland_m: 6.0,
+            growth_stage: 3.0,
+            plant_variation: 0.0,
+        }
+    }
+}
+
+impl VineyardConfig {
+    /// y of the lane centre between row `lane` and row `lane + 1`.
+    pub fn lane_y(&self, lane: usize) -> f64 {
+        (lane as f64 + 0.5) * self.row_spacing_m
+    }
+
+    pub fn lanes(&self) -> usize {
+        self.rows.saturating_sub(1)
+    }
+}
+
+/// Ground height field: smooth seeded noise plus an optional constant slope.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TerrainConfig {
+    /// Peak amplitude of the long undulations.
+    pub amplitude_m: f64,
+    pub wavelength_m: f64,
+    /// Peak amplitude of the short bumps that make the robot roll and pitch.
+    pub bump_amplitude_m: f64,
+    pub bump_wavelength_m: f64,
+    /// Constant slope along x and along y, in degrees.
+    pub slope_deg: [f64; 2],
+    /// Ground modelled around the block, beyond the headlands.
+    pub margin_m: f64,
+    /// Size of the ground mesh's cells.
+    pub cell_m: f64,
+}
+
+impl Default for TerrainConfig {
+    fn default() -> Self {
+        Self {
+            amplitude_m: 0.15,
+            wavelength_m: 10.0,
+            bump_amplitude_m: 0.03,
+            bump_wavelength_m: 2.5,
+            slope_deg: [0.0, 0.0],
+            margin_m: 30.0,
+            cell_m: 0.5,
+        }
+    }
+}
+
+impl TerrainConfig {
+    /// A perfectly flat ground plane at z = 0.
+    pub fn flat() -> Self {
+        Self {
+            amplitude_m: 0.0,
+            bump_amplitude_m: 0.0,
+            slope_deg: [0.0, 0.0],
+            ..Self::default()
+        }
+    }
+}
+
+/// The Thorvald-like base and its path-following controller.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotConfig {
+    /// Wheel contact points in the base frame: (±x, ±y).
+    pub wheel_x_m: f64,
+    pub wheel_y_m: f64,
+    pub wheel_radius_m: f64,
+    pub max_speed_mps: f64,
+    pub max_yaw_rate_rps: f64,
+    pub max_accel_mps2: f64,
+    pub max_yaw_accel_rps2: f64,
+    /// Limit on the change of acceleration, which keeps it continuous.
+    pub max_jerk_mps3: f64,
+    /// Pure-pursuit look-ahead distance.
+    pub lookahead_m: f64,
+    /// Time the robot stands still before moving and after arriving.
+    pub still_s: f64,
+}
+
+impl Default for RobotConfig {
+    fn default() -> Self {
+        Self {
+            wheel_x_m: 0.549,
+            wheel_y_m: 0.449,
+            wheel_radius_m: 0.2,
+            max_speed_mps: 0.5,
+            max_yaw_rate_rps: 0.5,
+            max_accel_mps2: 1.0,
+            max_yaw_accel_rps2: 1.0,
+            max_jerk_mps3: 4.0,
+            lookahead_m: 0.8,
+            still_s: 2.0,
+        }
+    }
+}
+
+/// A sensor's mounting: translation (m) and roll, pitch, yaw (deg) of `base_from_sensor`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mount {
+    pub xyz_m: [f64; 3],
+    #[serde(default)]
+    pub rpy_deg: [f64; 3],
+}
+
+impl Mount {
+    pub fn at(x: f64, y: f64, z: f64) -> Self {
+        Self {
+            xyz_m: [x, y, z],
+            rpy_deg: [0.0; 3],
+        }
+    }
+
+    pub fn base_from_sensor(&self) -> nalgebra::Isometry3<f64> {
+        let [x, y, z] = self.xyz_m;
+        let [r, p, yw] = self.rpy_deg.map(f64::to_radians);
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(x, y, z),
+            nalgebra::UnitQuaternion::from_euler_angles(r, p, yw),
+        )
+    }
+}
+
+/// Which noise a sensor adds: `typical` (a datasheet's figures) or `none` (the paper's
+/// noise-free Gazebo sensors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum NoiseProfile {
+    #[default]
+    Typical,
+    None,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorsConfig {
+    pub ground_truth: GroundTruthConfig,
+    pub imu: ImuConfig,
+    pub wheel_odometry: WheelOdometryConfig,
+    pub lidar: LidarConfig,
+    pub scan2d_front: Scan2dConfig,
+    pub scan2d_back: Scan2dConfig,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroundTruthConfig {
+    pub rate_hz: f64,
+}
+
+impl Default for GroundTruthConfig {
+    fn default() -> Self {
+        Self { rate_hz: 100.0 }
+    }
+}
+
+/// IMU noise as a datasheet (or Kalibr's `imu.yaml`) states it: continuous-time densities.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImuConfig {
+    pub rate_hz: f64,
+    pub mount: Mount,
+    pub noise: NoiseProfile,
+    /// Accelerometer white noise density, m/s²/√Hz.
+    pub accel_noise_density: f64,
+    /// Accelerometer bias random walk, m/s³/√Hz.
+    pub accel_bias_random_walk: f64,
+    /// Gyroscope white noise density, rad/s/√Hz.
+    pub gyro_noise_density: f64,
+    /// Gyroscope bias random walk, rad/s²/√Hz.
+    pub gyro_bias_random_walk: f64,
+    /// Standard deviation of the turn-on bias, per axis.
+    pub accel_bias_initial: f64,
+    pub gyro_bias_initial: f64,
+}
+
+impl Default for ImuConfig {
+    fn default() -> Self {
+        // A typical MEMS IMU (figures in the range of an Xsens MTi-100 / ADIS16448).
+        Self {
+            rate_hz: 200.0,
+            mount: Mount::at(0.0, 0.0, 0.6),
+            noise: NoiseProfile::Typical,
+            accel_noise_density: 2.0e-3,
+            accel_bias_random_walk: 3.0e-4,
+            gyro_noise_density: 1.7e-4,
+            gyro_bias_random_walk: 2.0e-5,
+            accel_bias_initial: 0.02,
+            gyro_bias_initial: 1.0e-3,
+        }
+    }
+}
+
+/// Wheel odometry: velocities measured by the wheel encoders and integrated in the plane.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WheelOdometryConfig {
+    pub rate_hz: f64,
+    pub noise: NoiseProfile,
+    /// Relative error of the wheel radius (a constant scale error on speed).
+    pub scale_error: f64,
+    /// Relative error of the effective track width (a constant scale error on yaw rate).
+    pub yaw_scale_error: f64,
+    /// Standard deviation of the relative slip on flat ground.
+    pub slip_sigma: f64,
+    /// Extra relative slip per unit of terrain slope (rise over run) under the robot.
+    pub slip_per_slope: f64,
+    /// Yaw-rate noise density, rad/s/√Hz, that grows like slip with the slope.
+    pub yaw_rate_noise_density: f64,
+}
+
+impl Default for WheelOdometryConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 50.0,
+            noise: NoiseProfile::Typical,
+            scale_error: 0.01,
+            yaw_scale_error: 0.02,
+            slip_sigma: 0.01,
+            slip_per_slope: 0.5,
+            yaw_rate_noise_density: 0.002,
+        }
+    }
+}
+
+/// A spinning multi-beam lidar (defaults: Velodyne VLP-16).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LidarConfig {
+    pub rate_hz: f64,
+    pub mount: Mount,
+    pub rings: usize,
+    pub min_elevation_deg: f64,
+    pub max_elevation_deg: f64,
+    /// Firings per revolution.
+    pub columns: usize,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+    pub noise: NoiseProfile,
+    pub range_sigma_m: f64,
+}
+
+impl Default for LidarConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 10.0,
+            mount: Mount::at(0.0, 0.0, 1.56),
+            rings: 16,
+            min_elevation_deg: -15.0,
+            max_elevation_deg: 15.0,
+            columns: 1800,
+            min_range_m: 0.9,
+            max_range_m: 130.0,
+            noise: NoiseProfile::Typical,
+            range_sigma_m: 0.008,
+        }
+    }
+}
+
+/// A planar scanning lidar (defaults: the paper's front and back 2D lidars).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scan2dConfig {
+    pub rate_hz: f64,
+    /// `None`: the default placement of its side (front: (0.65, 0, 0.35) m looking
+    /// forward; back: (-0.65, 0, 0.35) m looking backwards).
+    pub mount: Option<Mount>,
+    pub samples: usize,
+    pub angle_min_rad: f64,
+    pub angle_max_rad: f64,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+    pub noise: NoiseProfile,
+    pub range_sigma_m: f64,
+}
+
+impl Default for Scan2dConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 40.0,
+            mount: None,
+            samples: 720,
+            angle_min_rad: -2.18,
+            angle_max_rad: 2.36,
+            min_range_m: 0.1,
+            max_range_m: 30.0,
+            noise: NoiseProfile::Typical,
+            range_sigma_m: 0.01,
+        }
+    }
+}
+
+/// Which end of the base a 2D scanner sits at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Front,
+    Back,
+}
+
+impl Scan2dConfig {
+    /// The configured mount, or the default placement of `side`.
+    pub fn mount_for(&self, side: Side) -> Mount {
+        self.mount.unwrap_or(match side {
+            Side::Front => Mount::at(0.65, 0.0, 0.35),
+            Side::Back => Mount {
+                xyz_m: [-0.65, 0.0, 0.35],
+                rpy_deg: [0.0, 0.0, 180.0],
+            },
+        })
+    }
+}
+
+/// A route through the vineyard. Lanes are numbered from 0 (between rows 0 and 1).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum RouteSpec {
+    /// Straight along a lane, starting `start_x_m` along the row axis.
+    Straight {
+        lane: usize,
+        start_x_m: f64,
+        length_m: f64,
+    },
+    /// Down a lane, turn on the spot in the headland, back up the same lane.
+    SameLane { lane: usize, overshoot_m: f64 },
+    /// Down a lane, a U-turn in the headland, back up the next lane.
+    AdjacentLane { lane: usize, overshoot_m: f64 },
+    /// Up and down `lanes` consecutive lanes joined by U-turns.
+    Serpentine {
+        first_lane: usize,
+        lanes: usize,
+        overshoot_m: f64,
+    },
+    /// The user's own path: at least two (x, y) points in the world frame, driven in order.
+    Waypoints { points: Vec<[f64; 2]> },
+}
+
+impl RouteSpec {
+    /// The paper's scenarios S0-S3 (lengths 25, 48.6, 54.6, 101.2 m in the default world).
+    pub fn paper_scenarios() -> BTreeMap<String, RouteSpec> {
+        BTreeMap::from([
+            (
+                "s0".to_owned(),
+                RouteSpec::Straight {
+                    lane: 3,
+                    start_x_m: -3.5,
+                    length_m: 25.0,
+                },
+            ),
+            (
+                "s1".to_owned(),
+                RouteSpec::SameLane {
+                    lane: 3,
+                    overshoot_m: 3.15,
+                },
+            ),
+            (
+                "s2".to_owned(),
+                RouteSpec::AdjacentLane {
+                    lane: 3,
+                    overshoot_m: 3.47,
+                },
+            ),
+            (
+                "s3".to_owned(),
+                RouteSpec::Serpentine {
+                    first_lane: 2,
+                    lanes: 4,
+                    overshoot_m: 1.88,
+                },
+            ),
+        ])
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        match self {
+            RouteSpec::Straight { length_m, .. } => positive("length_m", *length_m),
+            RouteSpec::SameLane { overshoot_m, .. } | RouteSpec::AdjacentLane { overshoot_m, .. } => {
+                non_negative("overshoot_m", *overshoot_m)
+            }
+            RouteSpec::Serpentine {
+                lanes, overshoot_m, ..
+            } => {
+                if *lanes == 0 {
+                    return Err("lanes = 0: need at least one lane".into());
+                }
+                non_negative("overshoot_m", *overshoot_m)
+            }
+            RouteSpec::Waypoints { points } => {
+                if points.len() < 2 {
+                    Err(format!("points: {} given, need at least 2", points.len()))
+                } else if points.iter().flatten().any(|v| !v.is_finite()) {
+                    Err("points: every coordinate must be finite".into())
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The documented file and the built-in defaults must never disagree.
+    #[test]
+    fn shipped_world_toml_equals_the_defaults() {
+        let parsed = SimConfig::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml").expect("shipped file parses");
+        assert_eq!(parsed, SimConfig::default(), "configs/world.toml and SimConfig::default() differ");
+    }
+
+    #[test]
+    fn misspelt_key_is_named_with_its_line() {
+        let e = SimConfig::from_toml_str("[vineyard]\nrows = 9\nrow_lenght_m = 3.0\n", "my.toml").expect_err("typo");
+        let msg = e.to_string();
+        assert!(msg.contains("my.toml") && msg.contains("row_lenght_m") && msg.contains("line 3"), "{msg}");
+    }
+
+    #[test]
+    fn out_of_range_value_is_named() {
+        let e = SimConfig::from_toml_str("[vineyard]\nplant_variation = 1.5\n", "w.toml").expect_err("range");
+        assert!(e.to_string().contains("vineyard.plant_variation = 1.5"), "{e}");
+    }
+
+    #[test]
+    fn partial_file_keeps_other_defaults_and_adds_routes() {
+        let text = "[scenarios.mine]\nkind = \"waypoints\"\npoints = [[0.0, 1.5], [5.0, 1.5]]\n";
+        let cfg = SimConfig::from_toml_str(text, "w.toml").expect("parses");
+        assert_eq!(cfg.vineyard, VineyardConfig::default());
+        assert!(cfg.scenarios.contains_key("mine") && cfg.scenarios.contains_key("s3"), "{:?}", cfg.scenarios.keys());
+    }
+}

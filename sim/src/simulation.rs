@@ -1,0 +1,167 @@
+//! A simulation run: the world, the scenario's route and trajectory, and the ray caster,
+//! from which any selection of sensors can be streamed.
+
+use std::str::FromStr;
+
+use crate::config::{RaycasterKind, SimConfig};
+use crate::error::SimError;
+use crate::raycast::{Bvh, ParryCaster, RayCaster};
+use crate::robot::{Route, Trajectory, drive};
+use crate::rng::stream;
+use crate::sensors::{
+    GroundTruthSensor, ImuSensor, LidarSensor, Message, Scan2dSensor, ScanSide, Scene, Sensor, WheelOdometrySensor,
+};
+use crate::world::World;
+
+/// Which sensors a stream carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SensorSet {
+    pub ground_truth: bool,
+    pub imu: bool,
+    pub wheel_odometry: bool,
+    pub lidar: bool,
+    pub scan2d: bool,
+}
+
+impl SensorSet {
+    pub const ALL: SensorSet = SensorSet {
+        ground_truth: true,
+        imu: true,
+        wheel_odometry: true,
+        lidar: true,
+        scan2d: true,
+    };
+}
+
+impl FromStr for SensorSet {
+    type Err = String;
+
+    /// Parses `gt,imu,odom,lidar,scan2d` (any subset, comma-separated) or `all`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut set = SensorSet::default();
+        for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match name {
+                "all" => set = SensorSet::ALL,
+                "gt" => set.ground_truth = true,
+                "imu" => set.imu = true,
+                "odom" => set.wheel_odometry = true,
+                "lidar" => set.lidar = true,
+                "scan2d" => set.scan2d = true,
+                other => {
+                    return Err(format!(
+                        "unknown sensor '{other}' (known: gt, imu, odom, lidar, scan2d, all)"
+                    ));
+                }
+            }
+        }
+        Ok(set)
+    }
+}
+
+/// Everything a run needs, built once.
+#[derive(Debug)]
+pub struct Simulation {
+    pub config: SimConfig,
+    pub world: World,
+    pub route: Route,
+    pub trajectory: Trajectory,
+    caster: Box<dyn RayCaster>,
+    seed: u64,
+}
+
+impl Simulation {
+    /// Builds the world and drives the scenario's route. `seed` drives all sensor noise.
+    pub fn new(config: &SimConfig, scenario: &str, seed: u64) -> Result<Self, SimError> {
+        let world = World::build(&config.vineyard, &config.terrain, config.world_seed);
+        Self::with_world(config, world, scenario, seed)
+    }
+
+    /// As [`Simulation::new`] on an already built world.
+    pub fn with_world(config: &SimConfig, world: World, scenario: &str, seed: u64) -> Result<Self, SimError> {
+        let spec = config.scenarios.get(scenario).ok_or_else(|| SimError::UnknownScenario {
+            name: scenario.to_owned(),
+            known: config.scenarios.keys().cloned().collect::<Vec<_>>().join(", "),
+        })?;
+        let route = Route::build(scenario, spec, &config.vineyard)?;
+        let samples = drive(&route, &config.robot).ok_or_else(|| SimError::Route {
+            name: scenario.to_owned(),
+            message: "the controller did not reach the end within an hour of simulated time".into(),
+        })?;
+        let trajectory = Trajectory::from_samples(&samples, &world.terrain, &config.robot);
+        let caster: Box<dyn RayCaster> = match config.raycaster {
+            RaycasterKind::Bvh => Box::new(Bvh::build(&world.mesh)),
+            RaycasterKind::Parry => Box::new(ParryCaster::build(&world.mesh)),
+        };
+        Ok(Self {
+            config: config.clone(),
+            world,
+            route,
+            trajectory,
+            caster,
+            seed,
+        })
+    }
+
+    pub fn duration_ns(&self) -> i64 {
+        self.trajectory.duration_ns()
+    }
+
+    pub fn scene(&self) -> Scene<'_> {
+        Scene {
+            world: &self.world,
+            trajectory: &self.trajectory,
+            caster: self.caster.as_ref(),
+        }
+    }
+
+    /// The time-ordered message stream of the selected sensors.
+    pub fn stream(&self, sensors: SensorSet) -> Stream<'_> {
+        let s = &self.config.sensors;
+        let end = self.duration_ns();
+        let rng = |tag: &str| stream(self.seed, tag);
+        let mut list: Vec<Box<dyn Sensor>> = Vec::new();
+        if sensors.ground_truth {
+            list.push(Box::new(GroundTruthSensor::new(s.ground_truth.rate_hz, end)));
+        }
+        if sensors.imu {
+            list.push(Box::new(ImuSensor::new(&s.imu, end, rng("imu"))));
+        }
+        if sensors.wheel_odometry {
+            list.push(Box::new(WheelOdometrySensor::new(&s.wheel_odometry, end, rng("odom"))));
+        }
+        if sensors.scan2d {
+            list.push(Box::new(Scan2dSensor::new(&s.scan2d_front, ScanSide::Front, end, rng("scan_front"))));
+            list.push(Box::new(Scan2dSensor::new(&s.scan2d_back, ScanSide::Back, end, rng("scan_back"))));
+        }
+        if sensors.lidar {
+            list.push(Box::new(LidarSensor::new(&s.lidar, end, rng("lidar"))));
+        }
+        Stream {
+            scene: self.scene(),
+            sensors: list,
+        }
+    }
+}
+
+/// Messages of several sensors merged in the order they become available (a lidar sweep at
+/// its end, everything else at its stamp); ties go to the sensor listed first (ground
+/// truth, IMU, odometry, 2D scans, lidar). Lazy: one message is made per `next`.
+#[derive(Debug)]
+pub struct Stream<'a> {
+    scene: Scene<'a>,
+    sensors: Vec<Box<dyn Sensor>>,
+}
+
+impl Iterator for Stream<'_> {
+    type Item = Message;
+
+    fn next(&mut self) -> Option<Message> {
+        let (index, _) = self
+            .sensors
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| s.next_ready_ns().map(|t| (i, t)))
+            .min_by_key(|&(i, t)| (t, i))?;
+        Some(self.sensors[index].emit(&self.scene))
+    }
+}

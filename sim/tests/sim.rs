@@ -1,0 +1,318 @@
+//! End-to-end checks of the simulator: routes, IMU, wheel odometry, lidar geometry,
+//! motion distortion, determinism. One integration binary (parry's layout); each test says
+//! what it guards against.
+
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use sim::config::{NoiseProfile, RouteSpec, SimConfig, TerrainConfig};
+use sim::raycast::ParryCaster;
+use sim::robot::GRAVITY;
+use sim::sensors::{ImuSample, LidarScan, Message, WheelOdometry};
+use sim::world::World;
+use sim::{SensorSet, Simulation};
+
+fn only(sensors: &str) -> SensorSet {
+    sensors.parse().expect("valid sensor list")
+}
+
+fn noise_free(mut cfg: SimConfig) -> SimConfig {
+    cfg.sensors.imu.noise = NoiseProfile::None;
+    cfg.sensors.wheel_odometry.noise = NoiseProfile::None;
+    cfg.sensors.lidar.noise = NoiseProfile::None;
+    cfg.sensors.scan2d_front.noise = NoiseProfile::None;
+    cfg.sensors.scan2d_back.noise = NoiseProfile::None;
+    cfg
+}
+
+fn flat(mut cfg: SimConfig) -> SimConfig {
+    cfg.terrain = TerrainConfig::flat();
+    cfg
+}
+
+fn path_length(sim: &Simulation) -> f64 {
+    let step = 10_000_000;
+    (step..=sim.duration_ns())
+        .step_by(step as usize)
+        .map(|t| (sim.trajectory.pose(t).translation.vector - sim.trajectory.pose(t - step).translation.vector).norm())
+        .sum()
+}
+
+/// The paper's routes must keep their published lengths (±2 %) in the default world, as
+/// driven by the controller on uneven ground, not just as drawn.
+#[test]
+fn driven_routes_match_the_papers_lengths() {
+    let cfg = SimConfig::default();
+    let world = World::build(&cfg.vineyard, &cfg.terrain, cfg.world_seed);
+    for (name, paper) in [("s0", 25.0), ("s1", 48.6), ("s2", 54.6), ("s3", 101.2)] {
+        let sim = Simulation::with_world(&cfg, world.clone(), name, 0).expect("scenario builds");
+        let driven = path_length(&sim);
+        assert!(
+            (driven - paper).abs() / paper <= 0.02,
+            "{name}: driven {driven:.2} m, paper {paper} m (must be within 2 %)"
+        );
+    }
+}
+
+/// The ground truth must respect the robot's limits: the controller filters commands, and
+/// the spline must not add overshoot.
+#[test]
+fn ground_truth_respects_speed_and_yaw_rate_limits() {
+    let cfg = SimConfig::default();
+    let sim = Simulation::new(&cfg, "s2", 0).expect("s2 builds");
+    let (mut v_max, mut w_max) = (0.0f64, 0.0f64);
+    for t in (0..sim.duration_ns()).step_by(5_000_000) {
+        let s = sim.trajectory.state(t);
+        v_max = v_max.max(s.velocity.xy().norm());
+        w_max = w_max.max(s.omega_in_base.z.abs());
+    }
+    assert!(v_max <= 0.5 * 1.03 && v_max > 0.45, "peak speed {v_max} m/s: expected about 0.5 and not above");
+    assert!(w_max <= 0.5 * 1.1, "peak yaw rate {w_max} rad/s exceeds 0.5 rad/s");
+}
+
+/// Noise-free IMU readings are the exact derivatives of the ground truth: strapdown
+/// integration along S1 (uneven terrain, a turn on the spot) must end within 1 % of the
+/// distance travelled.
+#[test]
+fn noise_free_imu_integrates_to_ground_truth_along_s1() {
+    let cfg = noise_free(SimConfig::default());
+    let sim = Simulation::new(&cfg, "s1", 0).expect("s1 builds");
+    let base_from_imu = cfg.sensors.imu.mount.base_from_sensor();
+    let imu: Vec<ImuSample> = sim
+        .stream(only("imu"))
+        .filter_map(|m| match m {
+            Message::Imu(s) => Some(s),
+            _ => None,
+        })
+        .collect();
+    let world_from_imu = |t| sim.trajectory.pose(t) * base_from_imu;
+    let start = world_from_imu(0);
+    let (mut q, mut p) = (start.rotation, start.translation.vector);
+    let mut v = Vector3::zeros(); // the robot stands still at the start
+    let g = Vector3::new(0.0, 0.0, -GRAVITY);
+    for pair in imu.windows(2) {
+        let dt = (pair[1].stamp_ns - pair[0].stamp_ns) as f64 * 1e-9;
+        let a0 = q * pair[0].accel_mps2 + g;
+        let omega = 0.5 * (pair[0].gyro_rps + pair[1].gyro_rps);
+        let q1 = q * UnitQuaternion::from_scaled_axis(omega * dt);
+        let a1 = q1 * pair[1].accel_mps2 + g;
+        let v1 = v + 0.5 * (a0 + a1) * dt;
+        p += 0.5 * (v + v1) * dt;
+        v = v1;
+        q = q1;
+    }
+    let end = world_from_imu(imu.last().expect("imu samples").stamp_ns);
+    let error = (p - end.translation.vector).norm();
+    let distance = path_length(&sim);
+    assert!(
+        error < 0.01 * distance,
+        "integrated IMU ends {error:.3} m from ground truth after {distance:.1} m (limit 1 %)"
+    );
+    let yaw_error = (q.inverse() * end.rotation).angle();
+    assert!(yaw_error < 0.01, "attitude error {yaw_error} rad after integration");
+}
+
+/// On flat ground, noise-free wheel odometry is dead reckoning from exact rates: it must
+/// follow the ground truth's motion from the start pose.
+#[test]
+fn noise_free_wheel_odometry_on_flat_ground_reproduces_ground_truth() {
+    let cfg = flat(noise_free(SimConfig::default()));
+    let sim = Simulation::new(&cfg, "s2", 0).expect("s2 builds");
+    let start = sim.trajectory.pose(0);
+    let odom: Vec<WheelOdometry> = sim
+        .stream(only("odom"))
+        .filter_map(|m| match m {
+            Message::WheelOdometry(o) => Some(o),
+            _ => None,
+        })
+        .collect();
+    assert!(odom.len() > 50 * 100, "50 Hz over more than 100 s, got {}", odom.len());
+    let mut worst = 0.0f64;
+    for o in &odom {
+        let truth = start.inverse() * sim.trajectory.pose(o.stamp_ns);
+        let d = (truth.translation.vector - o.odom_from_base.translation.vector).norm();
+        worst = worst.max(d);
+        let dyaw = (truth.rotation.inverse() * o.odom_from_base.rotation).angle();
+        assert!(dyaw < 1e-3, "odometry yaw off by {dyaw} rad at {} ns", o.stamp_ns);
+    }
+    assert!(worst < 0.01, "odometry drifts {worst:.4} m from ground truth on flat ground without noise");
+}
+
+/// With noise on uneven ground the odometry must drift (else the baseline is meaningless),
+/// but stay a plausible odometry (a few percent of distance).
+#[test]
+fn noisy_wheel_odometry_drifts_plausibly() {
+    let cfg = SimConfig::default();
+    let sim = Simulation::new(&cfg, "s1", 3).expect("s1 builds");
+    let start = sim.trajectory.pose(0);
+    let last = sim
+        .stream(only("odom"))
+        .filter_map(|m| match m {
+            Message::WheelOdometry(o) => Some(o),
+            _ => None,
+        })
+        .last()
+        .expect("odometry messages");
+    let truth = start.inverse() * sim.trajectory.pose(last.stamp_ns);
+    let drift = (truth.translation.vector - last.odom_from_base.translation.vector).norm();
+    assert!(
+        (0.02..5.0).contains(&drift),
+        "odometry end drift {drift:.3} m over 48.6 m: expected between 2 cm and 5 m"
+    );
+}
+
+/// Ray geometry: on flat ground away from the vines, each downward beam of a resting
+/// VLP-16 at 1.56 m must hit the ground at 1.56 / sin(-elevation).
+#[test]
+fn lidar_points_on_flat_ground_fall_at_expected_ranges() {
+    let mut cfg = flat(noise_free(SimConfig::default()));
+    cfg.scenarios.insert(
+        "field".into(),
+        RouteSpec::Waypoints {
+            points: vec![[-20.0, 12.0], [-19.0, 12.0]],
+        },
+    );
+    let sim = Simulation::new(&cfg, "field", 0).expect("field route builds");
+    let scan = first_scan(&sim);
+    let lidar = &cfg.sensors.lidar;
+    let mut checked = 0;
+    for p in scan.points.iter().filter(|p| p.ring <= 4) {
+        let elevation = lidar.min_elevation_deg + f64::from(p.ring) * 2.0;
+        let expected = 1.56 / (-elevation.to_radians()).sin();
+        let range = f64::from(Vector3::new(p.x, p.y, p.z).norm());
+        assert!(
+            (range - expected).abs() < 2e-3,
+            "ring {} range {range:.4} m, expected {expected:.4} m on flat ground",
+            p.ring
+        );
+        checked += 1;
+    }
+    assert_eq!(checked, 5 * 1800, "every beam of rings 0-4 returns from the ground");
+
+    // With noise, the range errors have the datasheet's σ.
+    let mut noisy_cfg = cfg.clone();
+    noisy_cfg.sensors.lidar.noise = NoiseProfile::Typical;
+    let noisy = Simulation::new(&noisy_cfg, "field", 5).expect("builds");
+    let scan = first_scan(&noisy);
+    let errors: Vec<f64> = scan
+        .points
+        .iter()
+        .filter(|p| p.ring <= 4)
+        .map(|p| {
+            let expected = 1.56 / (-(lidar.min_elevation_deg + f64::from(p.ring) * 2.0).to_radians()).sin();
+            f64::from(Vector3::new(p.x, p.y, p.z).norm()) - expected
+        })
+        .collect();
+    let sigma = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    assert!((0.007..0.009).contains(&sigma), "range noise σ {sigma:.5} m, datasheet 0.008 m");
+}
+
+fn first_scan(sim: &Simulation) -> LidarScan {
+    sim.stream(only("lidar"))
+        .find_map(|m| match m {
+            Message::Lidar(s) => Some(s),
+            _ => None,
+        })
+        .expect("a lidar scan")
+}
+
+/// Each column fires from the pose at its own time: a scan taken while turning on the spot
+/// is distorted when every point is placed with the scan's stamp pose, and placing each
+/// point with the ground-truth pose at its own time puts it back on the scene's surfaces.
+#[test]
+fn turning_scan_is_distorted_and_ground_truth_deskewing_removes_it() {
+    let cfg = noise_free(SimConfig::default());
+    let sim = Simulation::new(&cfg, "s1", 0).expect("s1 builds");
+    let base_from_lidar = cfg.sensors.lidar.mount.base_from_sensor();
+    // The scan during which the robot turns fastest (the turn at the end of the lane).
+    let scan = sim
+        .stream(only("lidar"))
+        .filter_map(|m| match m {
+            Message::Lidar(s) => Some(s),
+            _ => None,
+        })
+        .max_by(|a, b| {
+            let w = |s: &LidarScan| sim.trajectory.state(s.stamp_ns + s.sweep_ns / 2).omega_in_base.z.abs();
+            w(a).total_cmp(&w(b))
+        })
+        .expect("scans");
+    let w = sim.trajectory.state(scan.stamp_ns + scan.sweep_ns / 2).omega_in_base.z.abs();
+    assert!(w > 0.3, "the chosen scan turns at {w} rad/s");
+    let surfaces = ParryCaster::build(&sim.world.mesh);
+    let place = |pose: Isometry3<f64>, p: &sim::sensors::LidarPoint| -> Point3<f32> {
+        (pose * base_from_lidar * Point3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z))).cast()
+    };
+    let (mut naive, mut deskewed) = (Vec::new(), Vec::new());
+    for p in scan.points.iter().step_by(7) {
+        let stamp_pose = sim.trajectory.pose(scan.stamp_ns);
+        let own_pose = sim.trajectory.pose(scan.stamp_ns + (f64::from(p.time_s) * 1e9).round() as i64);
+        naive.push(surfaces.distance_to_surface(&place(stamp_pose, p)));
+        deskewed.push(surfaces.distance_to_surface(&place(own_pose, p)));
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    let (naive, deskewed) = (mean(&naive), mean(&deskewed));
+    assert!(naive > 0.05, "a scan turning at {w:.2} rad/s should be distorted: mean distance to surface {naive:.4} m");
+    assert!(deskewed < 0.002, "deskewed points should lie on surfaces: mean distance {deskewed:.4} m");
+}
+
+fn digest(sim: &Simulation, sensors: SensorSet, until_ns: i64) -> (u64, usize) {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut n = 0;
+    for m in sim.stream(sensors).take_while(|m| m.stamp_ns() < until_ns) {
+        // Debug formatting of floats is exact (shortest round-trip), so equal text means equal bits.
+        for b in format!("{m:?}").bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        n += 1;
+    }
+    (h, n)
+}
+
+/// Determinism: the same configuration and seed give identical streams (also with rayon
+/// casting the lidar in parallel); another seed changes the noise.
+#[test]
+fn same_seed_gives_identical_stream_and_another_seed_a_different_one() {
+    let cfg = SimConfig::default();
+    let until = 3_000_000_000;
+    let a = digest(&Simulation::new(&cfg, "s0", 11).expect("builds"), SensorSet::ALL, until);
+    let b = digest(&Simulation::new(&cfg, "s0", 11).expect("builds"), SensorSet::ALL, until);
+    let c = digest(&Simulation::new(&cfg, "s0", 12).expect("builds"), SensorSet::ALL, until);
+    assert!(a.1 > 1000, "3 s of all sensors is more than a thousand messages, got {}", a.1);
+    assert_eq!(a, b, "same seed must give the identical stream");
+    assert_eq!(a.1, c.1, "another seed gives the same number of messages");
+    assert_ne!(a.0, c.0, "another seed must give different noise");
+}
+
+/// The stream is ordered by availability time, each sensor at its rate.
+#[test]
+fn stream_is_time_ordered_with_the_configured_rates() {
+    let cfg = SimConfig::default();
+    let sim = Simulation::new(&cfg, "s0", 0).expect("builds");
+    let mut last_ready = i64::MIN;
+    let mut counts = std::collections::BTreeMap::new();
+    for m in sim.stream(SensorSet::ALL).take_while(|m| m.stamp_ns() < 2_000_000_000) {
+        let ready = match &m {
+            Message::Lidar(s) => s.stamp_ns + s.sweep_ns,
+            Message::Scan2d(s) => s.stamp_ns + (s.time_increment_s as f64 * 1e9 * (s.ranges_m.len() - 1) as f64).round() as i64,
+            other => other.stamp_ns(),
+        };
+        assert!(ready >= last_ready, "{} at {ready} ns came after a message ready at {last_ready}", m.sensor());
+        last_ready = ready;
+        *counts.entry(m.sensor()).or_insert(0) += 1;
+    }
+    // Messages stamped in [0, 2 s): rates 100, 200, 50, 40, 40, 10 Hz.
+    for (sensor, expected) in [("gt", 200), ("imu", 400), ("odom", 100), ("scan_front", 80), ("scan_back", 80), ("lidar", 20)] {
+        let got = counts.get(sensor).copied().unwrap_or(0);
+        assert!((expected - 1..=expected).contains(&got), "{sensor}: {got} messages in 2 s, expected {expected}");
+    }
+}
+
+/// At rest the accelerometer reads gravity up and the gyro zero.
+#[test]
+fn resting_imu_reads_gravity() {
+    let cfg = flat(noise_free(SimConfig::default()));
+    let sim = Simulation::new(&cfg, "s0", 0).expect("builds");
+    let Some(Message::Imu(first)) = sim.stream(only("imu")).next() else {
+        panic!("first message should be an IMU sample");
+    };
+    assert!((first.accel_mps2 - Vector3::new(0.0, 0.0, GRAVITY)).norm() < 1e-9, "at rest: {:?}", first.accel_mps2);
+    assert!(first.gyro_rps.norm() < 1e-12, "at rest: {:?}", first.gyro_rps);
+}
