@@ -1,0 +1,111 @@
+//! End-to-end checks of the `vinebench` binary's simulator front end.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn vinebench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args(args)
+        .output()
+        .expect("vinebench runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn lines(path: &Path) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+/// `simulate --out` writes every file a user expects, with consistent counts, and prints
+/// the real-time factor last.
+#[test]
+fn simulate_dumps_every_sensor_and_reports_the_real_time_factor() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("s0");
+    let o = vinebench(&[
+        "simulate",
+        "--scenario",
+        "s0",
+        "--sensors",
+        "gt,imu,odom,lidar,scan2d",
+        "--seed",
+        "3",
+        "--max-time",
+        "3",
+        "--out",
+        out.to_str().expect("utf-8 path"),
+    ]);
+    assert!(o.status.success(), "simulate failed: {}", stderr(&o));
+    let last = stdout(&o).lines().last().unwrap_or_default().to_owned();
+    let factor: f64 = last
+        .strip_prefix("real-time factor: ")
+        .unwrap_or_else(|| panic!("last line should be the real-time factor, got '{last}'"))
+        .parse()
+        .expect("a number");
+    assert!(factor > 0.0, "real-time factor {factor}");
+
+    // 3 s at 100 Hz from t = 0 inclusive.
+    let gt = lines(&out.join("groundtruth.tum"));
+    assert_eq!(gt.len(), 301, "ground truth lines");
+    let fields: Vec<f64> = gt[0].split(' ').map(|f| f.parse().expect("numbers")).collect();
+    assert_eq!(fields.len(), 8, "TUM has 8 columns: {}", gt[0]);
+    let q_norm = fields[4..].iter().map(|q| q * q).sum::<f64>().sqrt();
+    assert!((q_norm - 1.0).abs() < 1e-6, "unit quaternion, norm {q_norm}");
+
+    assert_eq!(lines(&out.join("imu.csv")).len(), 1 + 601, "imu header + 200 Hz x 3 s + 1");
+    assert_eq!(lines(&out.join("odom.csv")).len(), 1 + 151, "odom header + 50 Hz x 3 s + 1");
+    let times = lines(&out.join("lidar/times.txt"));
+    assert_eq!(times.len(), 30, "sweeps completed within 3 s at 10 Hz");
+    for i in 0..times.len() {
+        let bin = out.join(format!("lidar/{i:06}.bin"));
+        let len = std::fs::metadata(&bin).expect("bin exists").len();
+        assert!(len > 16 * 10_000 && len % 16 == 0, "{}: {len} bytes", bin.display());
+    }
+    let front = lines(&out.join("scan_front.csv"));
+    let row: Vec<&str> = front.last().expect("rows").split(',').collect();
+    assert_eq!(row.len(), 1 + 720, "stamp + 720 ranges");
+    let png = std::fs::read(out.join("topview.png")).expect("top view written");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "top view is a PNG");
+}
+
+/// A bad configuration is one line naming the file and the key, a non-zero exit, and no
+/// output folder.
+#[test]
+fn misspelt_config_key_fails_cleanly_without_output() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let world = tmp.path().join("bad.toml");
+    std::fs::write(&world, "[vineyard]\nrowz = 3\n").expect("write");
+    let out = tmp.path().join("out");
+    let o = vinebench(&[
+        "simulate",
+        "--scenario",
+        "s0",
+        "--world",
+        world.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(!o.status.success(), "a misspelt key must fail");
+    let err = stderr(&o);
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert!(err.contains("bad.toml") && err.contains("rowz"), "names file and key: {err}");
+    assert!(!out.exists(), "no output folder after a failure");
+}
+
+#[test]
+fn unknown_scenario_and_sensor_are_named() {
+    let o = vinebench(&["simulate", "--scenario", "s9"]);
+    assert!(!o.status.success() && stderr(&o).contains("s9") && stderr(&o).contains("s3"), "{}", stderr(&o));
+    let o = vinebench(&["simulate", "--scenario", "s0", "--sensors", "gt,radar"]);
+    assert!(!o.status.success() && stderr(&o).contains("radar"), "{}", stderr(&o));
+}
