@@ -27,15 +27,23 @@ pub struct Dump {
 }
 
 fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
-    Ok(BufWriter::new(File::create(path).with_context(|| path.display().to_string())?))
+    Ok(BufWriter::new(
+        File::create(path).with_context(|| path.display().to_string())?,
+    ))
 }
 
 impl Dump {
     pub fn create(dir: &Path, sim: &Simulation) -> anyhow::Result<Self> {
         if dir.exists() && !dir.join(MARKER).exists() && fs::read_dir(dir)?.next().is_some() {
-            bail!("{} exists and was not written by vinebench simulate; choose another --out", dir.display());
+            bail!(
+                "{} exists and was not written by vinebench simulate; choose another --out",
+                dir.display()
+            );
         }
-        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
         let tmp = dir.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
         if tmp.exists() {
             fs::remove_dir_all(&tmp)?;
@@ -78,17 +86,29 @@ impl Dump {
                 let header = "stamp_ns,ax_mps2,ay_mps2,az_mps2,gx_rps,gy_rps,gz_rps";
                 let w = open(&mut self.imu, &self.tmp.join("imu.csv"), Some(header))?;
                 let (a, g) = (m.accel_mps2, m.gyro_rps);
-                writeln!(w, "{},{},{},{},{},{},{}", m.stamp_ns, a.x, a.y, a.z, g.x, g.y, g.z)?;
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{},{}",
+                    m.stamp_ns, a.x, a.y, a.z, g.x, g.y, g.z
+                )?;
             }
             Message::WheelOdometry(m) => {
                 let header = "stamp_ns,linear_mps,angular_rps,x_m,y_m,yaw_rad";
                 let w = open(&mut self.odom, &self.tmp.join("odom.csv"), Some(header))?;
                 let t = m.odom_from_base.translation.vector;
                 let yaw = m.odom_from_base.rotation.euler_angles().2;
-                writeln!(w, "{},{},{},{},{},{}", m.stamp_ns, m.linear_mps, m.angular_rps, t.x, t.y, yaw)?;
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{}",
+                    m.stamp_ns, m.linear_mps, m.angular_rps, t.x, t.y, yaw
+                )?;
             }
             Message::Lidar(scan) => {
-                let times = open(&mut self.lidar_times, &self.tmp.join("lidar/times.txt"), None)?;
+                let times = open(
+                    &mut self.lidar_times,
+                    &self.tmp.join("lidar/times.txt"),
+                    None,
+                )?;
                 writeln!(times, "{}", seconds(scan.stamp_ns))?;
                 // KITTI velodyne format: x, y, z, reflectance in [0, 1], little-endian f32.
                 let mut bytes = Vec::with_capacity(scan.points.len() * 16);
@@ -118,7 +138,12 @@ impl Dump {
 
     /// Flushes everything and moves the folder into place; returns its path.
     pub fn finish(mut self) -> anyhow::Result<PathBuf> {
-        let writers = [&mut self.gt, &mut self.imu, &mut self.odom, &mut self.lidar_times];
+        let writers = [
+            &mut self.gt,
+            &mut self.imu,
+            &mut self.odom,
+            &mut self.lidar_times,
+        ];
         for w in writers.into_iter().flatten() {
             w.flush()?;
         }
@@ -142,7 +167,11 @@ impl Drop for Dump {
     }
 }
 
-fn open<'a>(slot: &'a mut Option<BufWriter<File>>, path: &Path, header: Option<&str>) -> anyhow::Result<&'a mut BufWriter<File>> {
+fn open<'a>(
+    slot: &'a mut Option<BufWriter<File>>,
+    path: &Path,
+    header: Option<&str>,
+) -> anyhow::Result<&'a mut BufWriter<File>> {
     if slot.is_none() {
         let mut w = create(path)?;
         if let Some(h) = header {
@@ -156,13 +185,21 @@ fn open<'a>(slot: &'a mut Option<BufWriter<File>>, path: &Path, header: Option<&
 fn scan_header(scan: &LaserScan) -> String {
     format!(
         "# angle_min_rad={} angle_increment_rad={} time_increment_s={} range_min_m={} range_max_m={} (inf: no return)\nstamp_ns,ranges_m...",
-        scan.angle_min_rad, scan.angle_increment_rad, scan.time_increment_s, scan.range_min_m, scan.range_max_m
+        scan.angle_min_rad,
+        scan.angle_increment_rad,
+        scan.time_increment_s,
+        scan.range_min_m,
+        scan.range_max_m
     )
 }
 
 /// Seconds with nanosecond precision, as TUM files want them.
 fn seconds(ns: i64) -> String {
-    format!("{}.{:09}", ns.div_euclid(1_000_000_000), ns.rem_euclid(1_000_000_000))
+    format!(
+        "{}.{:09}",
+        ns.div_euclid(1_000_000_000),
+        ns.rem_euclid(1_000_000_000)
+    )
 }
 
 /// Length of the ground-truth path (sampled every 10 ms).

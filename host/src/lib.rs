@@ -1,6 +1,11 @@
 //! The vinebench host library: everything the `vinebench` binary does, as functions that
 //! tests can call.
 
+pub mod bench_config;
 pub mod cmd;
 pub mod dump;
+pub mod plugins;
+pub mod report;
+pub mod rig;
+pub mod runner;
 pub mod topview;

@@ -14,6 +14,15 @@ enum Command {
     Simulate(vinebench::cmd::simulate::SimulateArgs),
     /// Evaluate an estimated trajectory against ground truth (APE / RPE, as evo does).
     Eval(vinebench::cmd::eval::EvalArgs),
+    /// Run one plugin on one scenario and score it.
+    Run(vinebench::cmd::run::RunArgs),
+    /// Run a matrix of scenarios x plugins and write the paper's table.
+    Bench(vinebench::cmd::bench::BenchArgs),
+    /// List the plugins on the search path.
+    Plugins(vinebench::cmd::plugins::PluginsArgs),
+    /// One run in its own process (started by run and bench).
+    #[command(hide = true)]
+    Worker(vinebench::cmd::worker::WorkerArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -21,6 +30,10 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Simulate(args) => vinebench::cmd::simulate::run(&args),
         Command::Eval(args) => vinebench::cmd::eval::run(&args),
+        Command::Run(args) => vinebench::cmd::run::run(&args),
+        Command::Bench(args) => vinebench::cmd::bench::run(&args),
+        Command::Plugins(args) => vinebench::cmd::plugins::run(&args),
+        Command::Worker(args) => vinebench::cmd::worker::run(&args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

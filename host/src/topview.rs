@@ -22,20 +22,37 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
     let last_row = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
     let (min, max) = ((-pad, -pad), (v.row_length_m + pad, last_row + pad));
     let size = |extent: f64| (extent * PX_PER_M).round() as u32;
-    let mut canvas = Canvas::new(size(max.0 - min.0), size(max.1 - min.1), Bounds::new(min, max));
+    let mut canvas = Canvas::new(
+        size(max.0 - min.0),
+        size(max.1 - min.1),
+        Bounds::new(min, max),
+    );
 
     // Ground: soil in the block, grass around it, brighter where higher.
     let terrain = &sim.world.terrain;
-    let amplitude = (sim.config.terrain.amplitude_m + sim.config.terrain.bump_amplitude_m).max(1e-3);
-    let (nx, ny) = (((max.0 - min.0) / CELL_M) as usize, ((max.1 - min.1) / CELL_M) as usize);
+    let amplitude =
+        (sim.config.terrain.amplitude_m + sim.config.terrain.bump_amplitude_m).max(1e-3);
+    let (nx, ny) = (
+        ((max.0 - min.0) / CELL_M) as usize,
+        ((max.1 - min.1) / CELL_M) as usize,
+    );
     for j in 0..ny {
         for i in 0..nx {
             let (x, y) = (min.0 + i as f64 * CELL_M, min.1 + j as f64 * CELL_M);
             let (cx, cy) = (x + 0.5 * CELL_M, y + 0.5 * CELL_M);
-            let in_block = (-0.5..=v.row_length_m + 0.5).contains(&cx) && (-1.0..=last_row + 1.0).contains(&cy);
-            let base: Rgb = if in_block { [150, 120, 90] } else { [120, 165, 95] };
+            let in_block = (-0.5..=v.row_length_m + 0.5).contains(&cx)
+                && (-1.0..=last_row + 1.0).contains(&cy);
+            let base: Rgb = if in_block {
+                [150, 120, 90]
+            } else {
+                [120, 165, 95]
+            };
             let h = terrain.height(cx, cy) / amplitude;
-            canvas.fill_rect((x, y), (x + CELL_M, y + CELL_M), shade(base, 1.0 + 0.25 * h));
+            canvas.fill_rect(
+                (x, y),
+                (x + CELL_M, y + CELL_M),
+                shade(base, 1.0 + 0.25 * h),
+            );
         }
     }
 
@@ -55,7 +72,11 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
         canvas.circle((plant.base.x, plant.base.y), 2.0, [90, 60, 40]);
     }
     for post in &sim.world.posts {
-        canvas.fill_rect((post.x - 0.06, post.y - 0.06), (post.x + 0.06, post.y + 0.06), [70, 70, 70]);
+        canvas.fill_rect(
+            (post.x - 0.06, post.y - 0.06),
+            (post.x + 0.06, post.y + 0.06),
+            [70, 70, 70],
+        );
     }
 
     // Route as planned (thin) and as driven (thick), start and end marked.

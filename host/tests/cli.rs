@@ -57,19 +57,37 @@ fn simulate_dumps_every_sensor_and_reports_the_real_time_factor() {
     // 3 s at 100 Hz from t = 0 inclusive.
     let gt = lines(&out.join("groundtruth.tum"));
     assert_eq!(gt.len(), 301, "ground truth lines");
-    let fields: Vec<f64> = gt[0].split(' ').map(|f| f.parse().expect("numbers")).collect();
+    let fields: Vec<f64> = gt[0]
+        .split(' ')
+        .map(|f| f.parse().expect("numbers"))
+        .collect();
     assert_eq!(fields.len(), 8, "TUM has 8 columns: {}", gt[0]);
     let q_norm = fields[4..].iter().map(|q| q * q).sum::<f64>().sqrt();
-    assert!((q_norm - 1.0).abs() < 1e-6, "unit quaternion, norm {q_norm}");
+    assert!(
+        (q_norm - 1.0).abs() < 1e-6,
+        "unit quaternion, norm {q_norm}"
+    );
 
-    assert_eq!(lines(&out.join("imu.csv")).len(), 1 + 601, "imu header + 200 Hz x 3 s + 1");
-    assert_eq!(lines(&out.join("odom.csv")).len(), 1 + 151, "odom header + 50 Hz x 3 s + 1");
+    assert_eq!(
+        lines(&out.join("imu.csv")).len(),
+        1 + 601,
+        "imu header + 200 Hz x 3 s + 1"
+    );
+    assert_eq!(
+        lines(&out.join("odom.csv")).len(),
+        1 + 151,
+        "odom header + 50 Hz x 3 s + 1"
+    );
     let times = lines(&out.join("lidar/times.txt"));
     assert_eq!(times.len(), 30, "sweeps completed within 3 s at 10 Hz");
     for i in 0..times.len() {
         let bin = out.join(format!("lidar/{i:06}.bin"));
         let len = std::fs::metadata(&bin).expect("bin exists").len();
-        assert!(len > 16 * 10_000 && len % 16 == 0, "{}: {len} bytes", bin.display());
+        assert!(
+            len > 16 * 10_000 && len % 16 == 0,
+            "{}: {len} bytes",
+            bin.display()
+        );
     }
     let front = lines(&out.join("scan_front.csv"));
     let row: Vec<&str> = front.last().expect("rows").split(',').collect();
@@ -98,14 +116,25 @@ fn misspelt_config_key_fails_cleanly_without_output() {
     assert!(!o.status.success(), "a misspelt key must fail");
     let err = stderr(&o);
     assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
-    assert!(err.contains("bad.toml") && err.contains("rowz"), "names file and key: {err}");
+    assert!(
+        err.contains("bad.toml") && err.contains("rowz"),
+        "names file and key: {err}"
+    );
     assert!(!out.exists(), "no output folder after a failure");
 }
 
 #[test]
 fn unknown_scenario_and_sensor_are_named() {
     let o = vinebench(&["simulate", "--scenario", "s9"]);
-    assert!(!o.status.success() && stderr(&o).contains("s9") && stderr(&o).contains("s3"), "{}", stderr(&o));
+    assert!(
+        !o.status.success() && stderr(&o).contains("s9") && stderr(&o).contains("s3"),
+        "{}",
+        stderr(&o)
+    );
     let o = vinebench(&["simulate", "--scenario", "s0", "--sensors", "gt,radar"]);
-    assert!(!o.status.success() && stderr(&o).contains("radar"), "{}", stderr(&o));
+    assert!(
+        !o.status.success() && stderr(&o).contains("radar"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -12,7 +12,12 @@ use sim::sensors::{LidarSensor, Sensor, vlp16_directions};
 use sim::{Simulation, rng};
 
 /// One sweep of lidar rays from a pose in the middle of a lane, cast on one thread.
-fn sweep(caster: &dyn RayCaster, origin: &Point3<f32>, dirs: &[Vector3<f32>], out: &mut [Option<Hit>]) -> usize {
+fn sweep(
+    caster: &dyn RayCaster,
+    origin: &Point3<f32>,
+    dirs: &[Vector3<f32>],
+    out: &mut [Option<Hit>],
+) -> usize {
     for (d, o) in dirs.chunks(16).zip(out.chunks_mut(16)) {
         caster.cast_fan(origin, d, 0.9, 130.0, o);
     }
@@ -26,26 +31,39 @@ fn benches(c: &mut Criterion) {
     eprintln!("scene: {} triangles", mesh.triangle_count());
     let dirs = vlp16_directions(&cfg.sensors.lidar);
     let pose = sim.trajectory.pose(20_000_000_000);
-    let origin: Point3<f32> = Point3::from((pose.translation.vector + Vector3::new(0.0, 0.0, 1.56)).cast());
+    let origin: Point3<f32> =
+        Point3::from((pose.translation.vector + Vector3::new(0.0, 0.0, 1.56)).cast());
     let mut out = vec![None; dirs.len()];
 
     let mut group = c.benchmark_group("rays_one_thread");
     group.throughput(Throughput::Elements(dirs.len() as u64));
     let bvh = Bvh::build(mesh);
-    group.bench_function("bvh", |b| b.iter(|| black_box(sweep(&bvh, &origin, &dirs, &mut out))));
+    group.bench_function("bvh", |b| {
+        b.iter(|| black_box(sweep(&bvh, &origin, &dirs, &mut out)))
+    });
     let parry = ParryCaster::build(mesh);
     group.sample_size(10);
-    group.bench_function("parry3d", |b| b.iter(|| black_box(sweep(&parry, &origin, &dirs, &mut out))));
+    group.bench_function("parry3d", |b| {
+        b.iter(|| black_box(sweep(&parry, &origin, &dirs, &mut out)))
+    });
     group.finish();
 
     let mut group = c.benchmark_group("vlp16_scan_all_threads");
     group.throughput(Throughput::Elements(1));
     group.bench_function("scan", |b| {
         let scene = sim.scene();
-        let mut lidar = LidarSensor::new(&cfg.sensors.lidar, sim.duration_ns(), rng::stream(0, "lidar"));
+        let mut lidar = LidarSensor::new(
+            &cfg.sensors.lidar,
+            sim.duration_ns(),
+            rng::stream(0, "lidar"),
+        );
         b.iter(|| {
             if lidar.next_ready_ns().is_none() {
-                lidar = LidarSensor::new(&cfg.sensors.lidar, sim.duration_ns(), rng::stream(0, "lidar"));
+                lidar = LidarSensor::new(
+                    &cfg.sensors.lidar,
+                    sim.duration_ns(),
+                    rng::stream(0, "lidar"),
+                );
             }
             black_box(lidar.emit(&scene))
         });
@@ -54,7 +72,9 @@ fn benches(c: &mut Criterion) {
 
     let mut group = c.benchmark_group("scene_build");
     group.sample_size(10);
-    group.bench_function("bvh_build", |b| b.iter(|| black_box(Bvh::build(mesh).node_count())));
+    group.bench_function("bvh_build", |b| {
+        b.iter(|| black_box(Bvh::build(mesh).node_count()))
+    });
     group.finish();
 }
 

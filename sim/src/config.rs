@@ -82,6 +82,7 @@ impl SimConfig {
         positive("terrain.wavelength_m", t.wavelength_m)?;
         positive("terrain.bump_wavelength_m", t.bump_wavelength_m)?;
         positive("terrain.cell_m", t.cell_m)?;
+        positive("terrain.far_cell_m", t.far_cell_m)?;
         non_negative("terrain.amplitude_m", t.amplitude_m)?;
         non_negative("terrain.bump_amplitude_m", t.bump_amplitude_m)?;
         let r = &self.robot;
@@ -101,11 +102,16 @@ impl SimConfig {
         for (name, l) in [("front", &s.scan2d_front), ("back", &s.scan2d_back)] {
             positive(&format!("sensors.scan2d_{name}.rate_hz"), l.rate_hz)?;
             if l.samples < 2 {
-                return Err(format!("sensors.scan2d_{name}.samples = {}: need at least 2", l.samples));
+                return Err(format!(
+                    "sensors.scan2d_{name}.samples = {}: need at least 2",
+                    l.samples
+                ));
             }
         }
         for (name, route) in &self.scenarios {
-            route.validate().map_err(|e| format!("scenarios.{name}: {e}"))?;
+            route
+                .validate()
+                .map_err(|e| format!("scenarios.{name}: {e}"))?;
         }
         Ok(())
     }
@@ -214,8 +220,10 @@ pub struct TerrainConfig {
     pub slope_deg: [f64; 2],
     /// Ground modelled around the block, beyond the headlands.
     pub margin_m: f64,
-    /// Size of the ground mesh's cells.
+    /// Size of the ground mesh's cells over the block and its headlands.
     pub cell_m: f64,
+    /// Size of the cells beyond the headlands (rounded to a multiple of `cell_m`).
+    pub far_cell_m: f64,
 }
 
 impl Default for TerrainConfig {
@@ -228,6 +236,7 @@ impl Default for TerrainConfig {
             slope_deg: [0.0, 0.0],
             margin_m: 30.0,
             cell_m: 0.5,
+            far_cell_m: 2.0,
         }
     }
 }
@@ -561,7 +570,8 @@ impl RouteSpec {
     fn validate(&self) -> Result<(), String> {
         match self {
             RouteSpec::Straight { length_m, .. } => positive("length_m", *length_m),
-            RouteSpec::SameLane { overshoot_m, .. } | RouteSpec::AdjacentLane { overshoot_m, .. } => {
+            RouteSpec::SameLane { overshoot_m, .. }
+            | RouteSpec::AdjacentLane { overshoot_m, .. } => {
                 non_negative("overshoot_m", *overshoot_m)
             }
             RouteSpec::Serpentine {
@@ -592,21 +602,34 @@ mod tests {
     /// The documented file and the built-in defaults must never disagree.
     #[test]
     fn shipped_world_toml_equals_the_defaults() {
-        let parsed = SimConfig::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml").expect("shipped file parses");
-        assert_eq!(parsed, SimConfig::default(), "configs/world.toml and SimConfig::default() differ");
+        let parsed = SimConfig::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml")
+            .expect("shipped file parses");
+        assert_eq!(
+            parsed,
+            SimConfig::default(),
+            "configs/world.toml and SimConfig::default() differ"
+        );
     }
 
     #[test]
     fn misspelt_key_is_named_with_its_line() {
-        let e = SimConfig::from_toml_str("[vineyard]\nrows = 9\nrow_lenght_m = 3.0\n", "my.toml").expect_err("typo");
+        let e = SimConfig::from_toml_str("[vineyard]\nrows = 9\nrow_lenght_m = 3.0\n", "my.toml")
+            .expect_err("typo");
         let msg = e.to_string();
-        assert!(msg.contains("my.toml") && msg.contains("row_lenght_m") && msg.contains("line 3"), "{msg}");
+        assert!(
+            msg.contains("my.toml") && msg.contains("row_lenght_m") && msg.contains("line 3"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn out_of_range_value_is_named() {
-        let e = SimConfig::from_toml_str("[vineyard]\nplant_variation = 1.5\n", "w.toml").expect_err("range");
-        assert!(e.to_string().contains("vineyard.plant_variation = 1.5"), "{e}");
+        let e = SimConfig::from_toml_str("[vineyard]\nplant_variation = 1.5\n", "w.toml")
+            .expect_err("range");
+        assert!(
+            e.to_string().contains("vineyard.plant_variation = 1.5"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -614,6 +637,10 @@ mod tests {
         let text = "[scenarios.mine]\nkind = \"waypoints\"\npoints = [[0.0, 1.5], [5.0, 1.5]]\n";
         let cfg = SimConfig::from_toml_str(text, "w.toml").expect("parses");
         assert_eq!(cfg.vineyard, VineyardConfig::default());
-        assert!(cfg.scenarios.contains_key("mine") && cfg.scenarios.contains_key("s3"), "{:?}", cfg.scenarios.keys());
+        assert!(
+            cfg.scenarios.contains_key("mine") && cfg.scenarios.contains_key("s3"),
+            "{:?}",
+            cfg.scenarios.keys()
+        );
     }
 }

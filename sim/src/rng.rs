@@ -37,8 +37,20 @@ mod tests {
     #[test]
     fn streams_differ_by_tag_and_seed_and_repeat() {
         let a: u64 = stream(1, "imu").random();
-        assert_eq!(a, stream(1, "imu").random::<u64>(), "same seed and tag must repeat");
-        assert_ne!(a, stream(2, "imu").random::<u64>(), "another seed must differ");
-        assert_ne!(a, stream(1, "lidar").random::<u64>(), "another tag must differ");
+        assert_eq!(
+            a,
+            stream(1, "imu").random::<u64>(),
+            "same seed and tag must repeat"
+        );
+        assert_ne!(
+            a,
+            stream(2, "imu").random::<u64>(),
+            "another seed must differ"
+        );
+        assert_ne!(
+            a,
+            stream(1, "lidar").random::<u64>(),
+            "another tag must differ"
+        );
     }
 }

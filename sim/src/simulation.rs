@@ -6,10 +6,11 @@ use std::str::FromStr;
 use crate::config::{RaycasterKind, SimConfig};
 use crate::error::SimError;
 use crate::raycast::{Bvh, ParryCaster, RayCaster};
-use crate::robot::{Route, Trajectory, drive};
 use crate::rng::stream;
+use crate::robot::{Route, Trajectory, drive};
 use crate::sensors::{
-    GroundTruthSensor, ImuSensor, LidarSensor, Message, Scan2dSensor, ScanSide, Scene, Sensor, WheelOdometrySensor,
+    GroundTruthSensor, ImuSensor, LidarSensor, Message, Scan2dSensor, ScanSide, Scene, Sensor,
+    WheelOdometrySensor,
 };
 use crate::world::World;
 
@@ -77,11 +78,24 @@ impl Simulation {
     }
 
     /// As [`Simulation::new`] on an already built world.
-    pub fn with_world(config: &SimConfig, world: World, scenario: &str, seed: u64) -> Result<Self, SimError> {
-        let spec = config.scenarios.get(scenario).ok_or_else(|| SimError::UnknownScenario {
-            name: scenario.to_owned(),
-            known: config.scenarios.keys().cloned().collect::<Vec<_>>().join(", "),
-        })?;
+    pub fn with_world(
+        config: &SimConfig,
+        world: World,
+        scenario: &str,
+        seed: u64,
+    ) -> Result<Self, SimError> {
+        let spec = config
+            .scenarios
+            .get(scenario)
+            .ok_or_else(|| SimError::UnknownScenario {
+                name: scenario.to_owned(),
+                known: config
+                    .scenarios
+                    .keys()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?;
         let route = Route::build(scenario, spec, &config.vineyard)?;
         let samples = drive(&route, &config.robot).ok_or_else(|| SimError::Route {
             name: scenario.to_owned(),
@@ -121,17 +135,34 @@ impl Simulation {
         let rng = |tag: &str| stream(self.seed, tag);
         let mut list: Vec<Box<dyn Sensor>> = Vec::new();
         if sensors.ground_truth {
-            list.push(Box::new(GroundTruthSensor::new(s.ground_truth.rate_hz, end)));
+            list.push(Box::new(GroundTruthSensor::new(
+                s.ground_truth.rate_hz,
+                end,
+            )));
         }
         if sensors.imu {
             list.push(Box::new(ImuSensor::new(&s.imu, end, rng("imu"))));
         }
         if sensors.wheel_odometry {
-            list.push(Box::new(WheelOdometrySensor::new(&s.wheel_odometry, end, rng("odom"))));
+            list.push(Box::new(WheelOdometrySensor::new(
+                &s.wheel_odometry,
+                end,
+                rng("odom"),
+            )));
         }
         if sensors.scan2d {
-            list.push(Box::new(Scan2dSensor::new(&s.scan2d_front, ScanSide::Front, end, rng("scan_front"))));
-            list.push(Box::new(Scan2dSensor::new(&s.scan2d_back, ScanSide::Back, end, rng("scan_back"))));
+            list.push(Box::new(Scan2dSensor::new(
+                &s.scan2d_front,
+                ScanSide::Front,
+                end,
+                rng("scan_front"),
+            )));
+            list.push(Box::new(Scan2dSensor::new(
+                &s.scan2d_back,
+                ScanSide::Back,
+                end,
+                rng("scan_back"),
+            )));
         }
         if sensors.lidar {
             list.push(Box::new(LidarSensor::new(&s.lidar, end, rng("lidar"))));

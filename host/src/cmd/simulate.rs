@@ -37,7 +37,9 @@ pub struct SimulateArgs {
 pub fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<SimConfig> {
     Ok(match path {
         Some(p) => SimConfig::from_file(p)?,
-        None => SimConfig::from_toml_str(sim::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")?,
+        None => {
+            SimConfig::from_toml_str(sim::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")?
+        }
     })
 }
 
@@ -50,7 +52,10 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let config = load_config(args.world.as_deref())?;
     let sim = Simulation::new(&config, &args.scenario, args.seed)?;
     let mut dump = match &args.out {
-        Some(dir) => Some(Dump::create(dir, &sim).with_context(|| format!("cannot write to {}", dir.display()))?),
+        Some(dir) => Some(
+            Dump::create(dir, &sim)
+                .with_context(|| format!("cannot write to {}", dir.display()))?,
+        ),
         None => None,
     };
 
@@ -61,14 +66,19 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     };
     let bar = ProgressBar::new(duration_ns as u64 / 1_000_000);
     bar.set_style(
-        ProgressStyle::with_template("{prefix} [{bar:40}] {pos}/{len} ms simulated, {per_sec} ({eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{prefix} [{bar:40}] {pos}/{len} ms simulated, {per_sec} ({eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     bar.set_prefix(format!("simulate {}", args.scenario));
     let mut counts = std::collections::BTreeMap::<&'static str, u64>::new();
     let mut lidar_points = 0u64;
-    for message in sim.stream(sensors).take_while(|m| m.stamp_ns() <= duration_ns) {
+    for message in sim
+        .stream(sensors)
+        .take_while(|m| m.stamp_ns() <= duration_ns)
+    {
         *counts.entry(message.sensor()).or_default() += 1;
         if let sim::sensors::Message::Lidar(scan) = &message {
             lidar_points += scan.points.len() as u64;

@@ -78,7 +78,11 @@ pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
                     let w_max = (2.0 * PLAN_DECEL_FRACTION * cfg.max_yaw_accel_rps2 * e.abs())
                         .sqrt()
                         .min(cfg.max_yaw_rate_rps);
-                    (0.0, w_max * e.signum(), e.abs() < 1e-3 && w.value.abs() < 0.02)
+                    (
+                        0.0,
+                        w_max * e.signum(),
+                        e.abs() < 1e-3 && w.value.abs() < 0.02,
+                    )
                 }
                 (Leg::Drive(_), None) => unreachable!("a drive leg always has a follower"),
             };
@@ -100,7 +104,8 @@ pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
         }
     }
     // Come to rest, then stand still.
-    while v.value.abs() > 1e-6 || w.value.abs() > 1e-6 || v.rate.abs() > 1e-6 || w.rate.abs() > 1e-6 {
+    while v.value.abs() > 1e-6 || w.value.abs() > 1e-6 || v.rate.abs() > 1e-6 || w.rate.abs() > 1e-6
+    {
         v.track(0.0, cfg.max_accel_mps2, cfg.max_jerk_mps3, 3.0, dt);
         w.track(0.0, cfg.max_yaw_accel_rps2, yaw_jerk, 6.0, dt);
         let dyaw = w.value * dt;
@@ -141,7 +146,11 @@ impl<'a> PathFollower<'a> {
         for i in 1..points.len() {
             s[i] = s[i - 1] + (points[i] - points[i - 1]).norm();
         }
-        Self { points, s, closest: 0 }
+        Self {
+            points,
+            s,
+            closest: 0,
+        }
     }
 
     fn total(&self) -> f64 {
@@ -161,7 +170,13 @@ impl<'a> PathFollower<'a> {
     }
 
     /// (speed command, yaw-rate command, finished).
-    fn command(&mut self, pos: Point2<f64>, yaw: f64, v_now: f64, cfg: &RobotConfig) -> (f64, f64, bool) {
+    fn command(
+        &mut self,
+        pos: Point2<f64>,
+        yaw: f64,
+        v_now: f64,
+        cfg: &RobotConfig,
+    ) -> (f64, f64, bool) {
         // Advance the closest point within a short window ahead.
         let window = (self.closest + 200).min(self.points.len());
         let mut best = (self.points[self.closest] - pos).norm();

@@ -49,7 +49,10 @@ impl Route {
             if lane < v.lanes() {
                 Ok(v.lane_y(lane))
             } else {
-                Err(err(format!("lane {lane} does not exist: the vineyard has {} lanes", v.lanes())))
+                Err(err(format!(
+                    "lane {lane} does not exist: the vineyard has {} lanes",
+                    v.lanes()
+                )))
             }
         };
         let end = v.row_length_m;
@@ -61,9 +64,15 @@ impl Route {
                 length_m,
             } => {
                 let y = check_lane(lane)?;
-                vec![Leg::Drive(segment([start_x_m, y], [start_x_m + length_m, y]))]
+                vec![Leg::Drive(segment(
+                    [start_x_m, y],
+                    [start_x_m + length_m, y],
+                ))]
             }
-            RouteSpec::SameLane { lane, overshoot_m: a } => {
+            RouteSpec::SameLane {
+                lane,
+                overshoot_m: a,
+            } => {
                 let y = check_lane(lane)?;
                 vec![
                     Leg::Drive(segment([-a, y], [end + a, y])),
@@ -83,7 +92,13 @@ impl Route {
                 overshoot_m,
             } => {
                 check_lane(first_lane + lanes - 1)?;
-                vec![Leg::Drive(serpentine(v, first_lane, lanes, overshoot_m, half))]
+                vec![Leg::Drive(serpentine(
+                    v,
+                    first_lane,
+                    lanes,
+                    overshoot_m,
+                    half,
+                ))]
             }
             RouteSpec::Waypoints { ref points } => {
                 let mut path = vec![Point2::from(points[0])];
@@ -118,7 +133,9 @@ fn polyline_length(points: &[Point2<f64>]) -> f64 {
 fn segment(a: [f64; 2], b: [f64; 2]) -> Vec<Point2<f64>> {
     let (a, b) = (Point2::from(a), Point2::from(b));
     let n = ((b - a).norm() / STEP_M).ceil().max(1.0) as usize;
-    (0..=n).map(|i| a + (b - a) * (i as f64 / n as f64)).collect()
+    (0..=n)
+        .map(|i| a + (b - a) * (i as f64 / n as f64))
+        .collect()
 }
 
 /// Half a circle of radius `r` about `centre` from angle `from` through `sweep` radians.
@@ -133,7 +150,13 @@ fn arc(centre: Point2<f64>, r: f64, from: f64, sweep: f64) -> Vec<Point2<f64>> {
 }
 
 /// Up and down `lanes` lanes from `first`, joined by U-turns of radius `r` beyond the rows.
-fn serpentine(v: &VineyardConfig, first: usize, lanes: usize, overshoot: f64, r: f64) -> Vec<Point2<f64>> {
+fn serpentine(
+    v: &VineyardConfig,
+    first: usize,
+    lanes: usize,
+    overshoot: f64,
+    r: f64,
+) -> Vec<Point2<f64>> {
     let (lo, hi) = (-overshoot, v.row_length_m + overshoot);
     let mut path: Vec<Point2<f64>> = Vec::new();
     for k in 0..lanes {
@@ -151,7 +174,11 @@ fn serpentine(v: &VineyardConfig, first: usize, lanes: usize, overshoot: f64, r:
             } else {
                 (-half_pi, -std::f64::consts::PI)
             };
-            path.extend(arc(centre, r.min(0.5 * v.row_spacing_m), from, sweep).into_iter().skip(1));
+            path.extend(
+                arc(centre, r.min(0.5 * v.row_spacing_m), from, sweep)
+                    .into_iter()
+                    .skip(1),
+            );
         }
     }
     path
@@ -182,6 +209,9 @@ mod tests {
             overshoot_m: 1.0,
         };
         let e = Route::build("mine", &spec, &v).expect_err("lane 8 of 8 lanes does not exist");
-        assert!(e.to_string().contains("mine") && e.to_string().contains("lane 8"), "{e}");
+        assert!(
+            e.to_string().contains("mine") && e.to_string().contains("lane 8"),
+            "{e}"
+        );
     }
 }

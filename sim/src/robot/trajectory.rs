@@ -92,8 +92,12 @@ impl Trajectory {
         );
         let alpha = Vector3::new(
             ddroll - ddyaw * sp - dyaw * cp * dpitch,
-            ddpitch * cr - dpitch * sr * droll + ddyaw * sr * cp + dyaw * (cr * droll * cp - sr * sp * dpitch),
-            -ddpitch * sr - dpitch * cr * droll + ddyaw * cr * cp + dyaw * (-sr * droll * cp - cr * sp * dpitch),
+            ddpitch * cr - dpitch * sr * droll
+                + ddyaw * sr * cp
+                + dyaw * (cr * droll * cp - sr * sp * dpitch),
+            -ddpitch * sr - dpitch * cr * droll
+                + ddyaw * cr * cp
+                + dyaw * (-sr * droll * cp - cr * sp * dpitch),
         );
         State {
             world_from_base: pose_of(&p),
@@ -112,15 +116,31 @@ impl Trajectory {
         let u = t - i as f64;
         let (u2, u3) = (u * u, u * u * u);
         let w = [
-            [(1.0 - u).powi(3) / 6.0, (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0, (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0, u3 / 6.0],
-            [-(1.0 - u).powi(2) / 2.0, (3.0 * u2 - 4.0 * u) / 2.0, (-3.0 * u2 + 2.0 * u + 1.0) / 2.0, u2 / 2.0],
+            [
+                (1.0 - u).powi(3) / 6.0,
+                (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
+                (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
+                u3 / 6.0,
+            ],
+            [
+                -(1.0 - u).powi(2) / 2.0,
+                (3.0 * u2 - 4.0 * u) / 2.0,
+                (-3.0 * u2 + 2.0 * u + 1.0) / 2.0,
+                u2 / 2.0,
+            ],
             [1.0 - u, 3.0 * u - 2.0, 1.0 - 3.0 * u, u],
         ];
+        let ctrl = &self.ctrl[i..i + 4];
         let mut out = [[0.0; 6]; 3];
-        for (order, weights) in w.iter().enumerate() {
+        for ((order, weights), row) in w.iter().enumerate().zip(&mut out) {
             let scale = KNOT_DT_S.powi(-(order as i32));
-            for c in 0..6 {
-                out[order][c] = scale * (0..4).map(|k| weights[k] * self.ctrl[i + k][c]).sum::<f64>();
+            for (c, value) in row.iter_mut().enumerate() {
+                *value = scale
+                    * weights
+                        .iter()
+                        .zip(ctrl)
+                        .map(|(wk, p)| wk * p[c])
+                        .sum::<f64>();
             }
         }
         out

@@ -11,7 +11,11 @@ pub struct GroundTruthSensor {
 
 impl GroundTruthSensor {
     pub fn new(rate_hz: f64, end_ns: i64) -> Self {
-        Self { rate_hz, k: 0, end_ns }
+        Self {
+            rate_hz,
+            k: 0,
+            end_ns,
+        }
     }
 }
 

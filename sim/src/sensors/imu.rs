@@ -23,14 +23,19 @@ pub struct ImuSensor {
 }
 
 fn gaussian3(rng: &mut SimRng, sigma: f64) -> Vector3<f64> {
-    Vector3::from_fn(|_, _| sigma * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, rng))
+    Vector3::from_fn(|_, _| {
+        sigma * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, rng)
+    })
 }
 
 impl ImuSensor {
     pub fn new(cfg: &ImuConfig, end_ns: i64, mut rng: SimRng) -> Self {
         let noisy = cfg.noise == NoiseProfile::Typical;
         let (accel_bias, gyro_bias) = if noisy {
-            (gaussian3(&mut rng, cfg.accel_bias_initial), gaussian3(&mut rng, cfg.gyro_bias_initial))
+            (
+                gaussian3(&mut rng, cfg.accel_bias_initial),
+                gaussian3(&mut rng, cfg.gyro_bias_initial),
+            )
         } else {
             (Vector3::zeros(), Vector3::zeros())
         };
@@ -51,11 +56,15 @@ impl ImuSensor {
         let world_r_base = rotation(&s.world_from_base);
         let lever = self.base_from_imu.translation.vector;
         let (w, a) = (s.omega_in_base, s.alpha_in_base);
-        let accel_of_imu = s.acceleration + world_r_base * (a.cross(&lever) + w.cross(&w.cross(&lever)));
+        let accel_of_imu =
+            s.acceleration + world_r_base * (a.cross(&lever) + w.cross(&w.cross(&lever)));
         let specific_force_world = accel_of_imu + Vector3::new(0.0, 0.0, GRAVITY);
         let imu_from_world = (world_r_base * rotation(&self.base_from_imu)).transpose();
         let base_r_imu = rotation(&self.base_from_imu);
-        (imu_from_world * specific_force_world, base_r_imu.transpose() * w)
+        (
+            imu_from_world * specific_force_world,
+            base_r_imu.transpose() * w,
+        )
     }
 }
 
@@ -72,9 +81,12 @@ impl Sensor for ImuSensor {
         if self.cfg.noise == NoiseProfile::Typical {
             let dt = 1.0 / self.cfg.rate_hz;
             let sqrt_rate = self.cfg.rate_hz.sqrt();
-            accel += self.accel_bias + gaussian3(&mut self.rng, self.cfg.accel_noise_density * sqrt_rate);
-            gyro += self.gyro_bias + gaussian3(&mut self.rng, self.cfg.gyro_noise_density * sqrt_rate);
-            self.accel_bias += gaussian3(&mut self.rng, self.cfg.accel_bias_random_walk * dt.sqrt());
+            accel += self.accel_bias
+                + gaussian3(&mut self.rng, self.cfg.accel_noise_density * sqrt_rate);
+            gyro +=
+                self.gyro_bias + gaussian3(&mut self.rng, self.cfg.gyro_noise_density * sqrt_rate);
+            self.accel_bias +=
+                gaussian3(&mut self.rng, self.cfg.accel_bias_random_walk * dt.sqrt());
             self.gyro_bias += gaussian3(&mut self.rng, self.cfg.gyro_bias_random_walk * dt.sqrt());
         }
         Message::Imu(ImuSample {

@@ -38,8 +38,14 @@ pub fn vlp16_directions(cfg: &LidarConfig) -> Vec<Vector3<f32>> {
     for c in 0..cfg.columns {
         let azimuth = std::f64::consts::PI - std::f64::consts::TAU * c as f64 / cfg.columns as f64;
         for r in 0..cfg.rings {
-            let f = if cfg.rings == 1 { 0.5 } else { r as f64 / (cfg.rings - 1) as f64 };
-            let elevation = (cfg.min_elevation_deg + f * (cfg.max_elevation_deg - cfg.min_elevation_deg)).to_radians();
+            let f = if cfg.rings == 1 {
+                0.5
+            } else {
+                r as f64 / (cfg.rings - 1) as f64
+            };
+            let elevation = (cfg.min_elevation_deg
+                + f * (cfg.max_elevation_deg - cfg.min_elevation_deg))
+                .to_radians();
             dirs.push(Vector3::new(
                 (elevation.cos() * azimuth.cos()) as f32,
                 (elevation.cos() * azimuth.sin()) as f32,
@@ -75,7 +81,9 @@ impl LidarSensor {
     /// `world_from_lidar` at each column's firing time of the sweep starting at `stamp_ns`.
     pub fn column_poses(&self, scene: &Scene<'_>, stamp_ns: i64) -> Vec<Isometry3<f64>> {
         (0..self.cfg.columns)
-            .map(|c| scene.trajectory.pose(stamp_ns + self.column_offset_ns(c)) * self.base_from_lidar)
+            .map(|c| {
+                scene.trajectory.pose(stamp_ns + self.column_offset_ns(c)) * self.base_from_lidar
+            })
             .collect()
     }
 
@@ -91,12 +99,22 @@ impl LidarSensor {
                 for (j, column_out) in out.chunks_mut(rings).enumerate() {
                     let c = task * COLUMNS_PER_TASK + j;
                     let world_from_lidar = &poses[c];
-                    let origin: Point3<f32> = Point3::from(world_from_lidar.translation.vector.cast());
-                    let rot = world_from_lidar.rotation.to_rotation_matrix().into_inner().cast::<f32>();
-                    for (w, d) in world_dirs.iter_mut().zip(&self.directions[c * rings..(c + 1) * rings]) {
+                    let origin: Point3<f32> =
+                        Point3::from(world_from_lidar.translation.vector.cast());
+                    let rot = world_from_lidar
+                        .rotation
+                        .to_rotation_matrix()
+                        .into_inner()
+                        .cast::<f32>();
+                    for (w, d) in world_dirs
+                        .iter_mut()
+                        .zip(&self.directions[c * rings..(c + 1) * rings])
+                    {
                         *w = rot * d;
                     }
-                    scene.caster.cast_fan(&origin, &world_dirs, t_min, t_max, column_out);
+                    scene
+                        .caster
+                        .cast_fan(&origin, &world_dirs, t_min, t_max, column_out);
                 }
             });
         hits
@@ -123,7 +141,11 @@ impl Sensor for LidarSensor {
             let Some(hit) = hit else { continue };
             let (c, ring) = (i / rings, i % rings);
             let dir = self.directions[i];
-            let range = if noisy { hit.t + noise.sample(&mut self.rng) as f32 } else { hit.t };
+            let range = if noisy {
+                hit.t + noise.sample(&mut self.rng) as f32
+            } else {
+                hit.t
+            };
             if !(self.cfg.min_range_m as f32..=self.cfg.max_range_m as f32).contains(&range) {
                 continue;
             }

@@ -11,7 +11,9 @@ mod wheel_odometry;
 pub use ground_truth::GroundTruthSensor;
 pub use imu::ImuSensor;
 pub use lidar::{LidarSensor, vlp16_directions};
-pub use messages::{GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, ScanSide, WheelOdometry};
+pub use messages::{
+    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, ScanSide, WheelOdometry,
+};
 pub use scan2d::Scan2dSensor;
 pub use wheel_odometry::WheelOdometrySensor;
 

@@ -4,10 +4,14 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
 
 use super::{LaserScan, Message, ScanSide, Scene, Sensor, sample_time_ns};
 use crate::config::{NoiseProfile, Scan2dConfig};
 use crate::rng::SimRng;
+
+/// Samples cast together as one parallel task.
+const SAMPLES_PER_TASK: usize = 90;
 
 #[derive(Debug)]
 pub struct Scan2dSensor {
@@ -41,6 +45,18 @@ impl Scan2dSensor {
         }
     }
 
+    /// Origin and unit direction (world frame) of sample `i` of the sweep stamped `stamp_ns`.
+    fn ray(&self, scene: &Scene<'_>, stamp_ns: i64, i: usize) -> (Point3<f32>, Vector3<f32>) {
+        let t = stamp_ns + (i as f64 * self.time_increment_s * 1e9).round() as i64;
+        let world_from_scanner = scene.trajectory.pose(t) * self.base_from_scanner;
+        let angle = self.cfg.angle_min_rad + i as f64 * self.angle_increment;
+        let dir = world_from_scanner.rotation * Vector3::new(angle.cos(), angle.sin(), 0.0);
+        (
+            Point3::from(world_from_scanner.translation.vector.cast()),
+            dir.cast(),
+        )
+    }
+
     fn sweep_ns(&self) -> i64 {
         (self.time_increment_s * (self.cfg.samples - 1) as f64 * 1e9).round() as i64
     }
@@ -59,20 +75,29 @@ impl Sensor for Scan2dSensor {
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let (t_min, t_max) = (self.cfg.min_range_m as f32, self.cfg.max_range_m as f32);
         let mesh = &scene.world.mesh;
+        // Cast in parallel chunks of consecutive samples, each sample from its own pose.
+        let mut hits = vec![None; self.cfg.samples];
+        hits.par_chunks_mut(SAMPLES_PER_TASK)
+            .enumerate()
+            .for_each(|(task, out)| {
+                for (j, slot) in out.iter_mut().enumerate() {
+                    let (origin, dir) = self.ray(scene, stamp_ns, task * SAMPLES_PER_TASK + j);
+                    *slot = scene.caster.cast(&origin, &dir, t_min, t_max);
+                }
+            });
         let mut ranges = Vec::with_capacity(self.cfg.samples);
         let mut intensities = Vec::with_capacity(self.cfg.samples);
-        for i in 0..self.cfg.samples {
-            let t = stamp_ns + (i as f64 * self.time_increment_s * 1e9).round() as i64;
-            let world_from_scanner = scene.trajectory.pose(t) * self.base_from_scanner;
-            let angle = self.cfg.angle_min_rad + i as f64 * self.angle_increment;
-            let dir = world_from_scanner.rotation * Vector3::new(angle.cos(), angle.sin(), 0.0);
-            let origin: Point3<f32> = Point3::from(world_from_scanner.translation.vector.cast());
-            let hit = scene.caster.cast(&origin, &dir.cast(), t_min, t_max);
+        for (i, hit) in hits.into_iter().enumerate() {
             let (range, intensity) = match hit {
                 Some(h) => {
-                    let r = if noisy { h.t + noise.sample(&mut self.rng) as f32 } else { h.t };
+                    let r = if noisy {
+                        h.t + noise.sample(&mut self.rng) as f32
+                    } else {
+                        h.t
+                    };
                     let tri = h.triangle as usize;
-                    let cos = mesh.normal(tri).dot(&dir.cast()).abs();
+                    let (_, dir) = self.ray(scene, stamp_ns, i);
+                    let cos = mesh.normal(tri).dot(&dir).abs();
                     if (t_min..=t_max).contains(&r) {
                         (r, 255.0 * mesh.materials[tri].nir_reflectivity() * cos)
                     } else {

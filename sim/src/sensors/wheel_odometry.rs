@@ -64,17 +64,26 @@ impl Sensor for WheelOdometrySensor {
 
     fn emit(&mut self, scene: &Scene<'_>) -> Message {
         let stamp_ns = sample_time_ns(self.k, self.cfg.rate_hz);
-        let prev_ns = if self.k == 0 { stamp_ns } else { sample_time_ns(self.k - 1, self.cfg.rate_hz) };
+        let prev_ns = if self.k == 0 {
+            stamp_ns
+        } else {
+            sample_time_ns(self.k - 1, self.cfg.rate_hz)
+        };
         self.k += 1;
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let (speed_gain, yaw_gain, yaw_noise) = if noisy {
             let pose = scene.trajectory.pose(stamp_ns);
-            let slope = scene.world.terrain.gradient(pose.translation.x, pose.translation.y).norm();
+            let slope = scene
+                .world
+                .terrain
+                .gradient(pose.translation.x, pose.translation.y)
+                .norm();
             let roughness = 1.0 + self.cfg.slip_per_slope * slope / self.cfg.slip_sigma.max(1e-9);
             let dt = 1.0 / self.cfg.rate_hz;
             let decay = (-dt / SLIP_TAU_S).exp();
             let n = self.normal();
-            self.slip = decay * self.slip + (1.0 - decay * decay).sqrt() * self.cfg.slip_sigma * roughness * n;
+            self.slip = decay * self.slip
+                + (1.0 - decay * decay).sqrt() * self.cfg.slip_sigma * roughness * n;
             let yaw_sigma = self.cfg.yaw_rate_noise_density * self.cfg.rate_hz.sqrt() * roughness;
             let m = self.normal();
             (

@@ -110,14 +110,19 @@ impl Mesh {
     /// Unit normal of triangle `i` (right-handed winding); zero for a degenerate triangle.
     pub fn normal(&self, i: usize) -> Vector3<f32> {
         let [a, b, c] = self.corners(i);
-        (b - a).cross(&(c - a)).try_normalize(1e-12).unwrap_or_else(Vector3::zeros)
+        (b - a)
+            .cross(&(c - a))
+            .try_normalize(1e-12)
+            .unwrap_or_else(Vector3::zeros)
     }
 
     /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<(Point3<f32>, Point3<f32>)> {
         let first = *self.vertices.first()?;
-        Some(self.vertices.iter().fold((first, first), |(lo, hi), p| {
-            (lo.inf(p), hi.sup(p))
-        }))
+        Some(
+            self.vertices
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+        )
     }
 }

@@ -50,7 +50,12 @@ impl World {
     }
 
     /// Builds the world on a given terrain surface (tests use [`Terrain::flat`]).
-    pub fn build_on(vineyard: &VineyardConfig, terrain_cfg: &TerrainConfig, terrain: Terrain, world_seed: u64) -> Self {
+    pub fn build_on(
+        vineyard: &VineyardConfig,
+        terrain_cfg: &TerrainConfig,
+        terrain: Terrain,
+        world_seed: u64,
+    ) -> Self {
         let v = vineyard;
         let block_min = [-v.headland_m, -v.headland_m];
         let block_max = [
@@ -65,35 +70,67 @@ impl World {
         // Tilled soil under the rows and lanes, grass on the headlands and beyond.
         let last_row_y = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
         let soil = |x: f64, y: f64| {
-            let inside = (-0.5..=v.row_length_m + 0.5).contains(&x) && (-1.0..=last_row_y + 1.0).contains(&y);
-            if inside { Material::Soil } else { Material::Grass }
+            let inside = (-0.5..=v.row_length_m + 0.5).contains(&x)
+                && (-1.0..=last_row_y + 1.0).contains(&y);
+            if inside {
+                Material::Soil
+            } else {
+                Material::Grass
+            }
         };
-        let mut mesh = terrain.mesh(extent.0, extent.1, terrain_cfg.cell_m, soil);
+        let ratio = (terrain_cfg.far_cell_m / terrain_cfg.cell_m)
+            .round()
+            .max(1.0) as usize;
+        let mut mesh = terrain.mesh(
+            (block_min, block_max),
+            extent,
+            terrain_cfg.cell_m,
+            ratio,
+            soil,
+        );
 
         let mut posts = Vec::new();
         for row in 0..v.rows {
-            posts.extend(trellis::row_trellis(&mut mesh, v, &terrain, row as f64 * v.row_spacing_m));
+            posts.extend(trellis::row_trellis(
+                &mut mesh,
+                v,
+                &terrain,
+                row as f64 * v.row_spacing_m,
+            ));
         }
 
         let layout = VineLayout {
             spacing_m: v.plant_spacing_m,
-            cordon_height_m: v.wire_heights_m.iter().copied().fold(f64::INFINITY, f64::min).min(v.post_height_m),
+            cordon_height_m: v
+                .wire_heights_m
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min)
+                .min(v.post_height_m),
             canopy_top_m: v.post_height_m,
             growth_stage: v.growth_stage,
         };
         let per_row = (v.row_length_m / v.plant_spacing_m).floor() as usize;
-        let sites: Vec<(usize, usize)> = (0..v.rows).flat_map(|r| (0..per_row).map(move |i| (r, i))).collect();
+        let sites: Vec<(usize, usize)> = (0..v.rows)
+            .flat_map(|r| (0..per_row).map(move |i| (r, i)))
+            .collect();
         let clone_seed = stream(world_seed, "plant/clone");
         let local_meshes: Vec<Mesh> = if v.plant_variation == 0.0 {
             // Identical clones: build once.
-            let one = vine(&layout, &mut PlantRng::new(clone_seed.clone(), clone_seed, 0.0));
+            let one = vine(
+                &layout,
+                &mut PlantRng::new(clone_seed.clone(), clone_seed, 0.0),
+            );
             vec![one; sites.len()]
         } else {
             sites
                 .par_iter()
                 .map(|&(r, i)| {
                     let own = stream(world_seed, &format!("plant/{r}/{i}"));
-                    vine(&layout, &mut PlantRng::new(clone_seed.clone(), own, v.plant_variation))
+                    vine(
+                        &layout,
+                        &mut PlantRng::new(clone_seed.clone(), own, v.plant_variation),
+                    )
                 })
                 .collect()
         };
@@ -157,7 +194,10 @@ mod tests {
         if a.len() != b.len() {
             return f32::INFINITY;
         }
-        a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f32::max)
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f32::max)
     }
 
     #[test]
@@ -166,13 +206,19 @@ mod tests {
         let first = clones.plant_local_vertices(0);
         for i in 1..clones.plants.len() {
             let d = max_difference(&first, &clones.plant_local_vertices(i));
-            assert!(d < 1e-4, "plant {i} differs from plant 0 by {d} m with plant_variation = 0");
+            assert!(
+                d < 1e-4,
+                "plant {i} differs from plant 0 by {d} m with plant_variation = 0"
+            );
         }
         let unique = world(1.0);
         let first = unique.plant_local_vertices(0);
         for i in 1..unique.plants.len() {
             let d = max_difference(&first, &unique.plant_local_vertices(i));
-            assert!(d > 0.01, "plant {i} equals plant 0 (difference {d} m) with plant_variation = 1");
+            assert!(
+                d > 0.01,
+                "plant {i} equals plant 0 (difference {d} m) with plant_variation = 1"
+            );
         }
     }
 
@@ -180,10 +226,17 @@ mod tests {
     fn default_world_has_the_papers_layout() {
         let v = VineyardConfig::default();
         let w = World::build(&v, &TerrainConfig::default(), 1);
-        assert_eq!(w.plants.len(), 9 * 18, "9 rows of 18 plants one metre apart");
+        assert_eq!(
+            w.plants.len(),
+            9 * 18,
+            "9 rows of 18 plants one metre apart"
+        );
         assert_eq!(w.posts.len(), 9 * 4, "posts every 6 m over 18 m: 4 per row");
         let tris = w.mesh.triangle_count();
-        assert!((50_000..600_000).contains(&tris), "scene has {tris} triangles");
+        assert!(
+            (50_000..600_000).contains(&tris),
+            "scene has {tris} triangles"
+        );
         for p in &w.plants {
             let dz = p.base.z - w.terrain.height(p.base.x, p.base.y);
             assert!(dz.abs() < 1e-9, "plant stands on the ground");

@@ -7,7 +7,11 @@ use super::mesh::{Material, Mesh};
 
 /// Two unit vectors perpendicular to `axis` and to each other.
 fn frame(axis: &Vector3<f32>) -> (Vector3<f32>, Vector3<f32>) {
-    let helper = if axis.z.abs() < 0.9 { Vector3::z() } else { Vector3::x() };
+    let helper = if axis.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
     let u = axis.cross(&helper).normalize();
     let v = axis.cross(&u);
     (u, v)
@@ -15,7 +19,15 @@ fn frame(axis: &Vector3<f32>) -> (Vector3<f32>, Vector3<f32>) {
 
 /// An open tube of `sides` flat faces from `a` to `b` (no end caps: rays never see inside).
 /// With `cap`, the top end at `b` is closed.
-pub fn tube(mesh: &mut Mesh, a: Point3<f32>, b: Point3<f32>, radius: f32, sides: usize, cap: bool, material: Material) {
+pub fn tube(
+    mesh: &mut Mesh,
+    a: Point3<f32>,
+    b: Point3<f32>,
+    radius: f32,
+    sides: usize,
+    cap: bool,
+    material: Material,
+) {
     let axis = b - a;
     let Some(dir) = axis.try_normalize(1e-9) else {
         return;
@@ -46,7 +58,13 @@ pub fn tube(mesh: &mut Mesh, a: Point3<f32>, b: Point3<f32>, radius: f32, sides:
 
 /// A tube along a polyline (joints share no vertices: a few hundred extra vertices per plant
 /// are cheaper than the bookkeeping).
-pub fn polyline_tube(mesh: &mut Mesh, points: &[Point3<f32>], radius: f32, sides: usize, material: Material) {
+pub fn polyline_tube(
+    mesh: &mut Mesh,
+    points: &[Point3<f32>],
+    radius: f32,
+    sides: usize,
+    material: Material,
+) {
     for pair in points.windows(2) {
         tube(mesh, pair[0], pair[1], radius, sides, false, material);
     }
@@ -54,7 +72,14 @@ pub fn polyline_tube(mesh: &mut Mesh, points: &[Point3<f32>], radius: f32, sides
 
 /// A leaf folded along its midrib: a diamond from `base` to `base + length * dir`, its
 /// half-width `0.45 * length` along `side`, the two halves raised by `fold` of the width.
-pub fn leaf(mesh: &mut Mesh, base: Point3<f32>, dir: Vector3<f32>, side: Vector3<f32>, length: f32, fold: f32) {
+pub fn leaf(
+    mesh: &mut Mesh,
+    base: Point3<f32>,
+    dir: Vector3<f32>,
+    side: Vector3<f32>,
+    length: f32,
+    fold: f32,
+) {
     let normal = dir.cross(&side);
     let width = 0.45 * length;
     let mid = base + dir * (0.45 * length);

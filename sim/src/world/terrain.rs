@@ -45,7 +45,8 @@ impl Terrain {
                 // Wavelengths spread over an octave around the nominal one.
                 let lambda = wavelength * 2f64.powf(rng.random_range(-0.5..0.5));
                 let phase = rng.random_range(0.0..std::f64::consts::TAU);
-                let k = Vector2::new(direction.cos(), direction.sin()) * (std::f64::consts::TAU / lambda);
+                let k = Vector2::new(direction.cos(), direction.sin())
+                    * (std::f64::consts::TAU / lambda);
                 if per_wave > 0.0 {
                     waves.push(Wave {
                         k,
@@ -55,7 +56,10 @@ impl Terrain {
                 }
             }
         }
-        let slope = Vector2::new(cfg.slope_deg[0].to_radians().tan(), cfg.slope_deg[1].to_radians().tan());
+        let slope = Vector2::new(
+            cfg.slope_deg[0].to_radians().tan(),
+            cfg.slope_deg[1].to_radians().tan(),
+        );
         Self { waves, slope }
     }
 
@@ -85,31 +89,121 @@ impl Terrain {
         })
     }
 
-    /// Triangulates the surface over `[min, max]` with square cells of about `cell` metres;
-    /// `material(x, y)` chooses each triangle's material from its centroid.
-    pub fn mesh(&self, min: [f64; 2], max: [f64; 2], cell: f64, material: impl Fn(f64, f64) -> Material) -> Mesh {
-        let nx = ((max[0] - min[0]) / cell).ceil().max(1.0) as usize;
-        let ny = ((max[1] - min[1]) / cell).ceil().max(1.0) as usize;
-        let dx = (max[0] - min[0]) / nx as f64;
-        let dy = (max[1] - min[1]) / ny as f64;
+    /// Triangulates the surface over `outer` with square cells of `cell * ratio` metres,
+    /// refined to `cell` over `inner` (grown to the coarse lattice) where the robot drives
+    /// and the sensors look closely. The fine border vertices lie on the coarse edges, so the
+    /// surface has no cracks. `material(x, y)` chooses each triangle's material from its
+    /// centroid.
+    pub fn mesh(
+        &self,
+        inner: ([f64; 2], [f64; 2]),
+        outer: ([f64; 2], [f64; 2]),
+        cell: f64,
+        ratio: usize,
+        material: impl Fn(f64, f64) -> Material,
+    ) -> Mesh {
+        let ratio = ratio.max(1);
+        let coarse = cell * ratio as f64;
+        let o = outer.0;
+        let n = [0, 1].map(|k| ((outer.1[k] - o[k]) / coarse).ceil().max(1.0) as usize);
+        // Inner region in coarse cells, clamped to the outer one.
+        let lo =
+            [0, 1].map(|k| (((inner.0[k] - o[k]) / coarse).floor().max(0.0) as usize).min(n[k]));
+        let hi = [0, 1]
+            .map(|k| (((inner.1[k] - o[k]) / coarse).ceil().max(0.0) as usize).clamp(lo[k], n[k]));
+        // Lattice point (i, j) in fine units from the outer corner: one formula for both grids,
+        // so shared border vertices are bit-identical.
+        let at = |i: usize, j: usize| (o[0] + i as f64 * cell, o[1] + j as f64 * cell);
         let mut mesh = Mesh::new();
-        mesh.vertices.reserve((nx + 1) * (ny + 1));
-        for j in 0..=ny {
-            for i in 0..=nx {
-                let (x, y) = (min[0] + i as f64 * dx, min[1] + j as f64 * dy);
-                mesh.push_vertex(Point3::new(x as f32, y as f32, self.height(x, y) as f32));
+
+        // Coarse lattice over everything; cells inside the inner region are left to the fine one.
+        let mut coarse_nodes = Vec::with_capacity((n[0] + 1) * (n[1] + 1));
+        for j in 0..=n[1] {
+            for i in 0..=n[0] {
+                let (x, y) = at(i * ratio, j * ratio);
+                coarse_nodes.push(mesh.push_vertex(Point3::new(
+                    x as f32,
+                    y as f32,
+                    self.height(x, y) as f32,
+                )));
             }
         }
-        let index = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-        for j in 0..ny {
-            for i in 0..nx {
-                let m = material(min[0] + (i as f64 + 0.5) * dx, min[1] + (j as f64 + 0.5) * dy);
-                let (a, b, c, d) = (index(i, j), index(i + 1, j), index(i + 1, j + 1), index(i, j + 1));
+        let inside =
+            |i: usize, j: usize| (lo[0]..hi[0]).contains(&i) && (lo[1]..hi[1]).contains(&j);
+        let centre = |i: usize, j: usize, step: usize, first: (usize, usize)| {
+            let (x0, y0) = at(first.0 + i * step, first.1 + j * step);
+            (x0 + 0.5 * step as f64 * cell, y0 + 0.5 * step as f64 * cell)
+        };
+        grid_cells(&mut mesh, &coarse_nodes, n[0], n[1], |i, j| {
+            (!inside(i, j)).then(|| {
+                let (x, y) = centre(i, j, ratio, (0, 0));
+                material(x, y)
+            })
+        });
+
+        // Fine lattice over the inner region; its border vertices lie on the coarse edges.
+        let (cols, rows) = ((hi[0] - lo[0]) * ratio, (hi[1] - lo[1]) * ratio);
+        let first = (lo[0] * ratio, lo[1] * ratio);
+        let mut fine_nodes = Vec::with_capacity((cols + 1) * (rows + 1));
+        for b in 0..=rows {
+            for a in 0..=cols {
+                let (x, y) = at(first.0 + a, first.1 + b);
+                let along_x = (b == 0 || b == rows) && a % ratio != 0;
+                let along_y = (a == 0 || a == cols) && b % ratio != 0;
+                let z = if along_x || along_y {
+                    let (k, f) = if along_x {
+                        (a % ratio, 0)
+                    } else {
+                        (b % ratio, 1)
+                    };
+                    let w = k as f64 / ratio as f64;
+                    let back = |d: usize| {
+                        if f == 0 {
+                            at(first.0 + a - k + d, first.1 + b)
+                        } else {
+                            at(first.0 + a, first.1 + b - k + d)
+                        }
+                    };
+                    let (p0, p1) = (back(0), back(ratio));
+                    let (h0, h1) = (self.height(p0.0, p0.1), self.height(p1.0, p1.1));
+                    h0 + w * (h1 - h0)
+                } else {
+                    self.height(x, y)
+                };
+                fine_nodes.push(mesh.push_vertex(Point3::new(x as f32, y as f32, z as f32)));
+            }
+        }
+        grid_cells(&mut mesh, &fine_nodes, cols, rows, |i, j| {
+            let (x, y) = centre(i, j, 1, first);
+            Some(material(x, y))
+        });
+        mesh
+    }
+}
+
+/// Two triangles for every cell of a `cols × rows` lattice of vertex indices (row-major,
+/// `cols + 1` per row) to which `material` gives a material; `None` skips the cell.
+fn grid_cells(
+    mesh: &mut Mesh,
+    nodes: &[u32],
+    cols: usize,
+    rows: usize,
+    material: impl Fn(usize, usize) -> Option<Material>,
+) {
+    let index = |i: usize, j: usize| nodes[j * (cols + 1) + i];
+    for j in 0..rows {
+        for i in 0..cols {
+            if let Some(m) = material(i, j) {
+                let (a, b, c, d) = (
+                    index(i, j),
+                    index(i + 1, j),
+                    index(i + 1, j + 1),
+                    index(i, j + 1),
+                );
                 mesh.push_triangle([a, b, c], m);
                 mesh.push_triangle([a, c, d], m);
             }
         }
-        mesh
     }
 }
 
@@ -126,8 +220,46 @@ mod tests {
             let g = t.gradient(x, y);
             let gx = (t.height(x + h, y) - t.height(x - h, y)) / (2.0 * h);
             let gy = (t.height(x, y + h) - t.height(x, y - h)) / (2.0 * h);
-            assert!((g.x - gx).abs() < 1e-7 && (g.y - gy).abs() < 1e-7, "gradient {g:?} vs ({gx}, {gy})");
+            assert!(
+                (g.x - gx).abs() < 1e-7 && (g.y - gy).abs() < 1e-7,
+                "gradient {g:?} vs ({gx}, {gy})"
+            );
         }
+    }
+
+    /// The graded mesh must be watertight: rays straight down anywhere, including exactly on
+    /// the border between fine and coarse cells, hit the ground close to its true height.
+    #[test]
+    fn graded_mesh_has_no_cracks_and_follows_the_surface() {
+        use crate::raycast::{Bvh, RayCaster};
+        use nalgebra::Vector3;
+        let t = Terrain::new(&TerrainConfig::default(), &mut stream(3, "terrain"));
+        let mesh = t.mesh(
+            ([0.0, 0.0], [8.0, 6.0]),
+            ([-10.0, -10.0], [18.0, 16.0]),
+            0.5,
+            4,
+            |_, _| Material::Soil,
+        );
+        let bvh = Bvh::build(&mesh);
+        let down = Vector3::new(0.0f32, 0.0, -1.0);
+        let mut worst = 0.0f64;
+        for k in 0..4000 {
+            // Lines across the fine/coarse borders at x = 0 and y = 6 (both on the coarse lattice).
+            let (x, y) = if k % 2 == 0 {
+                (0.0 + 1e-4 * f64::from(k % 3), -9.0 + 0.0061 * f64::from(k))
+            } else {
+                (-9.0 + 0.0067 * f64::from(k), 6.0)
+            };
+            let hit = bvh.cast(&Point3::new(x as f32, y as f32, 5.0), &down, 0.0, 10.0);
+            let hit =
+                hit.unwrap_or_else(|| panic!("ray down at ({x}, {y}) found no ground: a crack"));
+            worst = worst.max((5.0 - f64::from(hit.t) - t.height(x, y)).abs());
+        }
+        assert!(
+            worst < 0.05,
+            "ground mesh departs {worst} m from the surface"
+        );
     }
 
     #[test]
@@ -138,6 +270,9 @@ mod tests {
             .map(|i| t.height(f64::from(i) * 0.05, f64::from(i % 37) * 0.7).abs())
             .fold(0.0, f64::max);
         let bound = 2.0 * (cfg.amplitude_m + cfg.bump_amplitude_m);
-        assert!(peak > 0.02 && peak < bound, "peak height {peak} should be non-zero and below {bound}");
+        assert!(
+            peak > 0.02 && peak < bound,
+            "peak height {peak} should be non-zero and below {bound}"
+        );
     }
 }

@@ -10,9 +10,9 @@
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
 
+use super::mesh::Material;
 use super::mesh::Mesh;
 use super::shapes::{bunch, leaf, polyline_tube};
-use super::mesh::Material;
 use crate::rng::SimRng;
 
 /// Draws uniform numbers for one plant as a blend of the clone's stream and the plant's own
@@ -27,7 +27,11 @@ pub struct PlantRng {
 
 impl PlantRng {
     pub fn new(clone: SimRng, own: SimRng, variation: f64) -> Self {
-        Self { clone, own, variation }
+        Self {
+            clone,
+            own,
+            variation,
+        }
     }
 
     /// Uniform in [0, 1).
@@ -85,7 +89,11 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
         let mut cordon = vec![head];
         for k in 1..=4 {
             let x = side * reach * k as f32 / 4.0;
-            cordon.push(Point3::new(x, rng.jitter(0.015), cordon_z + rng.jitter(0.015)));
+            cordon.push(Point3::new(
+                x,
+                rng.jitter(0.015),
+                cordon_z + rng.jitter(0.015),
+            ));
         }
         // Spurs every ~12 cm along the cordon.
         let spurs = (reach / 0.12).floor() as usize;
@@ -95,7 +103,13 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
             let f = t * 4.0 - i as f32;
             spur_points.push(cordon[i] + (cordon[i + 1] - cordon[i]) * f);
         }
-        polyline_tube(&mut mesh, &cordon, rng.range(0.018, 0.025), 5, Material::Bark);
+        polyline_tube(
+            &mut mesh,
+            &cordon,
+            rng.range(0.018, 0.025),
+            5,
+            Material::Bark,
+        );
     }
 
     // Shoots: a stub at dormancy, growing to the canopy top by stage 3.
@@ -108,8 +122,15 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
         let length = shoot_length * rng.range(0.8, 1.1);
         let lean = Vector3::new(rng.jitter(0.15), rng.jitter(0.2), 1.0).normalize();
         let tip = base + lean * length;
-        let mid = base + lean * (0.5 * length) + Vector3::new(rng.jitter(0.03), rng.jitter(0.04), 0.0);
-        polyline_tube(&mut mesh, &[base, mid, tip], if g < 0.5 { 0.012 } else { 0.007 }, 4, Material::Bark);
+        let mid =
+            base + lean * (0.5 * length) + Vector3::new(rng.jitter(0.03), rng.jitter(0.04), 0.0);
+        polyline_tube(
+            &mut mesh,
+            &[base, mid, tip],
+            if g < 0.5 { 0.012 } else { 0.007 },
+            4,
+            Material::Bark,
+        );
         if g < 0.8 {
             continue;
         }
@@ -122,21 +143,43 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
             let out = Vector3::new(rng.jitter(0.5), side_sign, rng.range(-0.2, 0.4)).normalize();
             let petiole = canopy_spread * rng.range(0.3, 1.0);
             let anchor = at + out * petiole;
-            let droop = Vector3::new(rng.jitter(0.6), out.y * 0.4, rng.range(-1.0, 0.2)).normalize();
-            let side = droop.cross(&Vector3::new(rng.jitter(0.3), rng.jitter(0.3), 1.0)).try_normalize(1e-6);
+            let droop =
+                Vector3::new(rng.jitter(0.6), out.y * 0.4, rng.range(-1.0, 0.2)).normalize();
+            let side = droop
+                .cross(&Vector3::new(rng.jitter(0.3), rng.jitter(0.3), 1.0))
+                .try_normalize(1e-6);
             let side = side.unwrap_or_else(Vector3::x);
-            leaf(&mut mesh, anchor, droop, side, leaf_size * rng.range(0.7, 1.15), rng.range(0.1, 0.4));
+            leaf(
+                &mut mesh,
+                anchor,
+                droop,
+                side,
+                leaf_size * rng.range(0.7, 1.15),
+                rng.range(0.1, 0.4),
+            );
         }
         // Lateral shoots' small leaves fill the canopy from stage 2.5 on.
         if g > 2.5 {
             let laterals = ((g - 2.5) / 1.5 * nodes as f64 * 0.6).round() as usize;
             for _ in 0..laterals {
                 let at = base + lean * (length * rng.range(0.15, 0.95));
-                let out = Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.jitter(0.5)).normalize();
+                let out =
+                    Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.jitter(0.5)).normalize();
                 let anchor = at + out * (canopy_spread * rng.range(0.2, 1.0));
-                let dir = Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.range(-1.0, 0.3)).normalize();
-                let side = dir.cross(&out).try_normalize(1e-6).unwrap_or_else(Vector3::y);
-                leaf(&mut mesh, anchor, dir, side, 0.7 * leaf_size * rng.range(0.7, 1.1), 0.2);
+                let dir = Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.range(-1.0, 0.3))
+                    .normalize();
+                let side = dir
+                    .cross(&out)
+                    .try_normalize(1e-6)
+                    .unwrap_or_else(Vector3::y);
+                leaf(
+                    &mut mesh,
+                    anchor,
+                    dir,
+                    side,
+                    0.7 * leaf_size * rng.range(0.7, 1.1),
+                    0.2,
+                );
             }
         }
     }
@@ -179,16 +222,33 @@ mod tests {
             .map(|&g| {
                 let m = build(g);
                 let leaves = m.materials.iter().filter(|&&x| x == Material::Leaf).count();
-                let grapes = m.materials.iter().filter(|&&x| x == Material::Grape).count();
+                let grapes = m
+                    .materials
+                    .iter()
+                    .filter(|&&x| x == Material::Grape)
+                    .count();
                 (leaves, grapes)
             })
             .collect();
-        assert_eq!(counts[0], (0, 0), "dormant vine has neither leaves nor grapes");
+        assert_eq!(
+            counts[0],
+            (0, 0),
+            "dormant vine has neither leaves nor grapes"
+        );
         for w in counts.windows(2) {
-            assert!(w[1].0 > w[0].0, "leaf count must grow with stage: {counts:?}");
+            assert!(
+                w[1].0 > w[0].0,
+                "leaf count must grow with stage: {counts:?}"
+            );
         }
-        assert!(counts[3].1 == 0 && counts[4].1 > 0, "grapes only at full stage: {counts:?}");
+        assert!(
+            counts[3].1 == 0 && counts[4].1 > 0,
+            "grapes only at full stage: {counts:?}"
+        );
         let top = build(4.0).bounds().expect("non-empty").1.z;
-        assert!(top > 1.6, "full canopy reaches the catch wires, top at {top}");
+        assert!(
+            top > 1.6,
+            "full canopy reaches the catch wires, top at {top}"
+        );
     }
 }

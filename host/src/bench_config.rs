@@ -1,0 +1,153 @@
+//! A benchmark matrix from TOML (`configs/paper.toml`): scenarios × plugins, each plugin with
+//! its parameter table handed to it verbatim.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, bail};
+use serde::Deserialize;
+
+/// Alignment of each estimate to ground truth before APE.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Align {
+    None,
+    Origin,
+    #[default]
+    Se3,
+    Sim3,
+    #[serde(rename = "4dof")]
+    FourDof,
+}
+
+impl From<Align> for eval::Alignment {
+    fn from(a: Align) -> Self {
+        match a {
+            Align::None => eval::Alignment::None,
+            Align::Origin => eval::Alignment::Origin,
+            Align::Se3 => eval::Alignment::Se3,
+            Align::Sim3 => eval::Alignment::Sim3,
+            Align::FourDof => eval::Alignment::FourDof,
+        }
+    }
+}
+
+/// One system of the matrix: a plugin by `name` (searched for) or `path`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PluginEntry {
+    pub name: Option<String>,
+    pub path: Option<PathBuf>,
+    /// Column label in the report (default: the name or the file stem).
+    pub label: Option<String>,
+    /// The plugin's parameters, handed to it verbatim as TOML.
+    #[serde(default)]
+    pub params: toml::Table,
+}
+
+impl PluginEntry {
+    pub fn label(&self) -> String {
+        self.label
+            .clone()
+            .or_else(|| self.name.clone())
+            .or_else(|| {
+                self.path
+                    .as_ref()
+                    .and_then(|p| p.file_stem())
+                    .map(|s| s.to_string_lossy().into_owned())
+            })
+            .unwrap_or_else(|| "plugin".into())
+    }
+}
+
+fn default_scenarios() -> Vec<String> {
+    ["s0", "s1", "s2", "s3"].map(str::to_owned).to_vec()
+}
+
+fn default_timeout() -> f64 {
+    3600.0
+}
+
+fn default_memory() -> u64 {
+    8192
+}
+
+/// The matrix file. Every key but `plugins` is optional.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BenchConfig {
+    #[serde(default = "default_scenarios")]
+    pub scenarios: Vec<String>,
+    /// Seed of the sensor noise.
+    #[serde(default)]
+    pub seed: u64,
+    /// Simulator configuration (relative to this file); default: the embedded one.
+    pub world: Option<PathBuf>,
+    /// Extra directories to search for plugins (relative to this file).
+    #[serde(default)]
+    pub plugin_dirs: Vec<PathBuf>,
+    /// Runs at once (default: the number of cores).
+    pub jobs: Option<usize>,
+    /// Wall-clock limit of one run.
+    #[serde(default = "default_timeout")]
+    pub timeout_s: f64,
+    /// Address-space limit of one run.
+    #[serde(default = "default_memory")]
+    pub memory_limit_mb: u64,
+    #[serde(default)]
+    pub align: Align,
+    pub plugins: Vec<PluginEntry>,
+}
+
+impl BenchConfig {
+    pub fn from_file(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+        let mut cfg: BenchConfig = toml::from_str(&text).map_err(|e| {
+            let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
+            let at = line.map(|l| format!(" (line {l})")).unwrap_or_default();
+            anyhow::anyhow!("{}: {}{at}", path.display(), e.message())
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        cfg.world = cfg.world.map(|w| base.join(w));
+        cfg.plugin_dirs = cfg.plugin_dirs.iter().map(|d| base.join(d)).collect();
+        for p in &mut cfg.plugins {
+            p.path = p.path.as_ref().map(|q| base.join(q));
+        }
+        cfg.validate()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        Ok(cfg)
+    }
+
+    fn validate(&self) -> anyhow::Result<()> {
+        if self.scenarios.is_empty() {
+            bail!("scenarios: empty list");
+        }
+        if self.plugins.is_empty() {
+            bail!("plugins: no [[plugins]] entry");
+        }
+        if !(self.timeout_s.is_finite() && self.timeout_s > 0.0) {
+            bail!(
+                "timeout_s = {}: must be a positive number of seconds",
+                self.timeout_s
+            );
+        }
+        if self.memory_limit_mb < 64 {
+            bail!(
+                "memory_limit_mb = {}: must be at least 64",
+                self.memory_limit_mb
+            );
+        }
+        let mut labels = std::collections::BTreeSet::new();
+        for (i, p) in self.plugins.iter().enumerate() {
+            if p.name.is_some() == p.path.is_some() {
+                bail!("plugins[{i}]: give exactly one of name or path");
+            }
+            if !labels.insert(p.label()) {
+                bail!(
+                    "plugins[{i}]: label '{}' used twice; give each entry its own label",
+                    p.label()
+                );
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,86 @@
+//! `vinebench bench FILE.toml`: a matrix of scenarios × plugins, the paper's table.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use clap::Args;
+
+use crate::bench_config::BenchConfig;
+use crate::runner::{Plan, PlannedRun, execute};
+
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The matrix, e.g. configs/paper.toml.
+    pub file: PathBuf,
+    /// Results folder (default: results/<file stem>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Runs at once (default: the file's `jobs`, else the number of cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+}
+
+/// Runs at once when nobody says: one per core.
+pub fn default_jobs() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}
+
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    let cfg = BenchConfig::from_file(&args.file)?;
+    let dirs = crate::plugins::search_path(&cfg.plugin_dirs);
+    let mut runs = Vec::new();
+    let mut labels = Vec::new();
+    let mut resolved = Vec::new();
+    for entry in &cfg.plugins {
+        let what = entry
+            .name
+            .clone()
+            .or_else(|| entry.path.as_ref().map(|p| p.display().to_string()))
+            .unwrap_or_default();
+        let path = crate::plugins::resolve(&what, &dirs)
+            .with_context(|| args.file.display().to_string())?;
+        let params = toml::to_string(&entry.params)?;
+        labels.push(entry.label());
+        resolved.push((entry.label(), path, params));
+    }
+    for scenario in &cfg.scenarios {
+        for (label, path, params) in &resolved {
+            runs.push(PlannedRun {
+                scenario: scenario.clone(),
+                label: label.clone(),
+                plugin: path.clone(),
+                params_toml: params.clone(),
+            });
+        }
+    }
+    let stem = args
+        .file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "bench".into());
+    let plan = Plan {
+        out: args
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("results").join(stem)),
+        world: cfg.world.clone(),
+        seed: cfg.seed,
+        scenarios: cfg.scenarios.clone(),
+        labels,
+        runs,
+        jobs: args.jobs.or(cfg.jobs).unwrap_or_else(default_jobs),
+        timeout: Duration::from_secs_f64(cfg.timeout_s),
+        memory_limit_mb: cfg.memory_limit_mb,
+        alignment: cfg.align.into(),
+    };
+    report(&plan)
+}
+
+/// Executes a plan and prints its table and where the results are.
+pub fn report(plan: &Plan) -> anyhow::Result<()> {
+    let executed = execute(plan)?;
+    println!("{}", executed.table_markdown);
+    println!("results: {}", executed.dir.display());
+    Ok(())
+}

@@ -1,0 +1,95 @@
+//! `vinebench run`: one plugin on one scenario, in a worker process, with its results folder.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use clap::Args;
+
+use crate::bench_config::Align;
+use crate::runner::{Plan, PlannedRun};
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    #[arg(long)]
+    pub scenario: String,
+    /// Plugin name (searched for) or path to its library.
+    #[arg(long)]
+    pub plugin: String,
+    /// The plugin's parameters (TOML), handed to it verbatim.
+    #[arg(long)]
+    pub plugin_config: Option<PathBuf>,
+    /// Simulator configuration (configs/world.toml shape).
+    #[arg(long)]
+    pub world: Option<PathBuf>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Results folder (default: results/run).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[arg(long, default_value_t = 3600.0)]
+    pub timeout_s: f64,
+    #[arg(long, default_value_t = 8192)]
+    pub memory_limit_mb: u64,
+    /// Alignment before APE: none, origin, se3, sim3, 4dof.
+    #[arg(long, default_value = "se3")]
+    pub align: String,
+    /// More directories to search for plugins.
+    #[arg(long = "plugin-dir")]
+    pub plugin_dirs: Vec<PathBuf>,
+}
+
+pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    let dirs = crate::plugins::search_path(&args.plugin_dirs);
+    let path = crate::plugins::resolve(&args.plugin, &dirs)?;
+    let params_toml = match &args.plugin_config {
+        Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
+        None => String::new(),
+    };
+    let align: Align = toml::Value::String(args.align.clone())
+        .try_into()
+        .map_err(|_| {
+            anyhow::anyhow!(
+                "--align {}: expected none, origin, se3, sim3 or 4dof",
+                args.align
+            )
+        })?;
+    anyhow::ensure!(
+        args.timeout_s.is_finite() && args.timeout_s > 0.0,
+        "--timeout-s {}: must be positive",
+        args.timeout_s
+    );
+    let label = plugin_label(&args.plugin);
+    let plan = Plan {
+        out: args
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("results/run")),
+        world: args.world.clone(),
+        seed: args.seed,
+        scenarios: vec![args.scenario.clone()],
+        labels: vec![label.clone()],
+        runs: vec![PlannedRun {
+            scenario: args.scenario.clone(),
+            label,
+            plugin: path,
+            params_toml,
+        }],
+        jobs: 1,
+        timeout: Duration::from_secs_f64(args.timeout_s),
+        memory_limit_mb: args.memory_limit_mb,
+        alignment: align.into(),
+    };
+    crate::cmd::bench::report(&plan)
+}
+
+/// A column label for a plugin given by name or path.
+fn plugin_label(name_or_path: &str) -> String {
+    let stem = std::path::Path::new(name_or_path)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| name_or_path.to_owned());
+    stem.strip_prefix(std::env::consts::DLL_PREFIX)
+        .unwrap_or(&stem)
+        .replace('_', "-")
+}

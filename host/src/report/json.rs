@@ -1,0 +1,90 @@
+//! `table.json`, shaped as DESIGN.md fixes it:
+//! `{"<scenario>": {"<plugin>": {"status": "ok" | "failed: <reason>", "rmse": …,
+//! "mean": …, "median": …, "max": …, "min": …, "std": …, "realtime_factor": …}}}`.
+//!
+//! Scenarios and plugins appear in the table's column order. An ok run has every key,
+//! with full f64 precision and `null` for a value that is missing or not finite; a
+//! failed run has `status` only. A (scenario, plugin) pair without a run is absent.
+
+use serde::Serialize;
+use serde::ser::SerializeMap as _;
+
+use super::table::{Column, Table};
+
+/// One run's entry; untagged, so it serialises as its fields only.
+#[derive(Serialize)]
+#[serde(untagged)]
+enum Entry {
+    Ok {
+        status: &'static str,
+        rmse: Option<f64>,
+        mean: Option<f64>,
+        median: Option<f64>,
+        max: Option<f64>,
+        min: Option<f64>,
+        std: Option<f64>,
+        realtime_factor: Option<f64>,
+    },
+    Failed {
+        status: String,
+    },
+}
+
+impl Entry {
+    fn new(column: &Column) -> Self {
+        if let Some(reason) = &column.failure {
+            return Self::Failed {
+                status: format!("failed: {reason}"),
+            };
+        }
+        let ape = column.run.ape.as_ref();
+        let stat = |field: fn(&eval::Statistics) -> f64| ape.map(field).filter(|v| v.is_finite());
+        Self::Ok {
+            status: "ok",
+            rmse: stat(|s| s.rmse),
+            mean: stat(|s| s.mean),
+            median: stat(|s| s.median),
+            max: stat(|s| s.max),
+            min: stat(|s| s.min),
+            std: stat(|s| s.std),
+            realtime_factor: column.run.realtime_factor.filter(|v| v.is_finite()),
+        }
+    }
+}
+
+/// The whole table as a map in column order (serde_json's own `Map` would sort keys).
+struct Report<'t, 'a>(&'t Table<'a>);
+
+/// The runs of one scenario as a map in plugin order.
+struct ScenarioRuns<'t, 'a>(Vec<&'t Column<'a>>);
+
+impl Serialize for Report<'_, '_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let groups = self.0.groups();
+        let mut map = serializer.serialize_map(Some(groups.len()))?;
+        for (scenario, range) in groups {
+            map.serialize_entry(
+                scenario,
+                &ScenarioRuns(self.0.columns[range].iter().collect()),
+            )?;
+        }
+        map.end()
+    }
+}
+
+impl Serialize for ScenarioRuns<'_, '_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(self.0.len()))?;
+        for column in &self.0 {
+            map.serialize_entry(&column.run.plugin, &Entry::new(column))?;
+        }
+        map.end()
+    }
+}
+
+/// The pretty-printed JSON of `table`, ending with a newline.
+pub(super) fn render(table: &Table) -> anyhow::Result<String> {
+    let mut json = serde_json::to_string_pretty(&Report(table))?;
+    json.push('\n');
+    Ok(json)
+}

@@ -1,0 +1,92 @@
+//! The table as a LaTeX `tabular` with booktabs rules (`\usepackage{booktabs}`), ready
+//! to `\input` inside a `table` environment: scenarios as `\multicolumn` headers over
+//! their systems, and a footnote line naming the failed runs and why they failed.
+
+use std::fmt::Write as _;
+
+use super::table::Table;
+
+/// `text` with LaTeX's special characters escaped.
+pub(super) fn escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '_' | '&' | '%' | '#' | '$' | '{' | '}' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '\\' => out.push_str("\\textbackslash{}"),
+            '~' => out.push_str("\\textasciitilde{}"),
+            '^' => out.push_str("\\textasciicircum{}"),
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+/// The LaTeX of `table`.
+pub(super) fn render(table: &Table) -> String {
+    let n = table.columns.len();
+    let groups = table.groups();
+    let mut out = String::from(
+        "% vinebench benchmark table; needs \\usepackage{booktabs}.\n\
+         % APE translation after alignment in metres; RTF: simulated seconds per wall second.\n",
+    );
+    let _ = writeln!(out, "\\begin{{tabular}}{{l{}}}", "r".repeat(n));
+    out.push_str("\\toprule\nscenario");
+    for (scenario, range) in &groups {
+        let _ = write!(
+            out,
+            " & \\multicolumn{{{}}}{{c}}{{{}}}",
+            range.len(),
+            escape(scenario)
+        );
+    }
+    out.push_str(" \\\\\n");
+    if !groups.is_empty() {
+        let rules: Vec<String> = groups
+            .iter()
+            .map(|(_, r)| format!("\\cmidrule(lr){{{}-{}}}", r.start + 2, r.end + 1))
+            .collect();
+        let _ = writeln!(out, "{}", rules.join(" "));
+    }
+    out.push_str("system");
+    for column in &table.columns {
+        let _ = write!(out, " & {}", escape(&column.run.plugin));
+    }
+    out.push_str(" \\\\\n\\midrule\n");
+    let rows = table.rows();
+    let last = rows.len() - 1;
+    for (r, row) in rows.iter().enumerate() {
+        if r == last {
+            // The real-time factor is not an error statistic: set it apart.
+            out.push_str("\\midrule\n");
+        }
+        out.push_str(row.label);
+        for i in 0..n {
+            let _ = write!(out, " & {}", row.text(i));
+        }
+        out.push_str(" \\\\\n");
+    }
+    out.push_str("\\bottomrule\n\\end{tabular}\n");
+
+    let failures: Vec<String> = table
+        .failures()
+        .map(|(scenario, plugin, reason)| {
+            format!(
+                "{}/{}: {}",
+                escape(scenario),
+                escape(plugin),
+                escape(reason)
+            )
+        })
+        .collect();
+    if !failures.is_empty() {
+        let _ = writeln!(
+            out,
+            "\\par\\smallskip{{\\footnotesize Failed runs: {}.\\par}}",
+            failures.join("; ")
+        );
+    }
+    out
+}

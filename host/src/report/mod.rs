@@ -1,0 +1,113 @@
+//! Benchmark reports: the paper's Table 2 (APE translation statistics per scenario and
+//! system, Hroob et al. 2021) as Markdown, CSV, LaTeX and JSON, and one top-view overlay
+//! plot per scenario.
+//!
+//! [`write_reports`] is the entry point. Every file it writes is a pure function of its
+//! inputs (no timestamps, stable order, fixed float formatting), so identical runs give
+//! byte-identical reports. One file per output format:
+//! - `table.rs`: the format-independent table (columns, rows, cells, failures);
+//! - `markdown.rs`, `csv.rs`, `latex.rs`, `json.rs`: the renderers;
+//! - `plot.rs`: the overlay plots (PNG and SVG).
+
+mod csv;
+mod json;
+mod latex;
+mod markdown;
+mod plot;
+mod table;
+#[cfg(test)]
+mod tests;
+
+use std::path::Path;
+
+use anyhow::Context as _;
+
+use table::Table;
+
+/// How one (scenario, plugin) run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunStatus {
+    /// The run finished and was evaluated.
+    Ok,
+    /// The run did not produce a result; the reason is shown in the reports
+    /// (e.g. `"timed out after 600 s"`).
+    Failed(String),
+}
+
+/// Everything the report needs about one run.
+#[derive(Debug, Clone)]
+pub struct RunRecord {
+    /// Scenario name: `"s0"`..`"s3"` or a user scenario name.
+    pub scenario: String,
+    /// Column label of the system, e.g. `"wheel-odometry"`.
+    pub plugin: String,
+    /// How the run ended.
+    pub status: RunStatus,
+    /// APE translation statistics (metres) of the final trajectory after alignment;
+    /// `None` when failed.
+    pub ape: Option<eval::Statistics>,
+    /// Simulated seconds per wall second of the run (sim + plugin); `None` when failed.
+    pub realtime_factor: Option<f64>,
+    /// Top view (x, y) of the aligned final estimate, for the overlay plot; empty when
+    /// failed.
+    pub estimate_xy: Vec<(f64, f64)>,
+}
+
+/// Ground truth (x, y) per scenario for the overlay plots.
+#[derive(Debug, Clone)]
+pub struct ScenarioTruth {
+    /// Scenario name, as in [`RunRecord::scenario`].
+    pub scenario: String,
+    /// Top view of the ground-truth trajectory.
+    pub groundtruth_xy: Vec<(f64, f64)>,
+}
+
+/// Writes the reports of a benchmark into `dir` (created if needed) and returns the
+/// Markdown table (the content of `table.md`) for the caller to print.
+///
+/// Files:
+/// - `table.md`, `table.csv`, `table.tex`: the paper's Table 2 layout. Rows `max`, `mean`,
+///   `median`, `rmse`, `std` (metres, 3 decimals) and `RTF` (real-time factor,
+///   1 decimal); one column per (scenario, plugin) run, all systems of the first
+///   scenario, then of the next, under a two-level header (scenario, then system). A
+///   failed run shows `failed` in its cells and its reason below the table (Markdown: a
+///   "Failed runs" list; LaTeX: a footnote line; CSV: a last `status` row). A value that
+///   is missing although the run is ok shows `n/a`.
+/// - `table.json`: `{"<scenario>": {"<plugin>": {"status": "ok" | "failed: <reason>",
+///   "rmse", "mean", "median", "max", "min", "std", "realtime_factor"}}}` with full f64
+///   precision; a failed run has only `status` (see `json.rs`).
+/// - `plots/<scenario>.png` and `.svg`: ground truth in black under every ok system's
+///   aligned estimate in the system's colour, and a legend below the plot (colour
+///   swatches in the PNG, which has no font; swatches and names in the SVG). File names
+///   keep ASCII letters, digits, `.`, `-` and `_` of the scenario name; any other
+///   character becomes `_`.
+///
+/// Column order: `scenarios` and `plugins` as given, then any scenario or plugin that
+/// only appears in `runs`, in order of first appearance. A (scenario, plugin) pair
+/// without a run has no column. A plugin keeps its colour (by position in that order)
+/// across all plots. Truths of scenarios without a plot are ignored.
+///
+/// Errors if two runs share a scenario and plugin, if two scenario names map to the same
+/// plot file name, or if a file cannot be written (the error names the file).
+pub fn write_reports(
+    dir: &Path,
+    scenarios: &[String],
+    plugins: &[String],
+    runs: &[RunRecord],
+    truths: &[ScenarioTruth],
+) -> anyhow::Result<String> {
+    let table = Table::new(scenarios, plugins, runs)?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating the results folder {}", dir.display()))?;
+    let markdown = markdown::render(&table);
+    write_file(&dir.join("table.md"), &markdown)?;
+    write_file(&dir.join("table.csv"), &csv::render(&table))?;
+    write_file(&dir.join("table.tex"), &latex::render(&table))?;
+    write_file(&dir.join("table.json"), &json::render(&table)?)?;
+    plot::write_plots(&dir.join("plots"), &table, truths)?;
+    Ok(markdown)
+}
+
+fn write_file(path: &Path, contents: &str) -> anyhow::Result<()> {
+    std::fs::write(path, contents).with_context(|| format!("writing {}", path.display()))
+}

@@ -1,0 +1,187 @@
+//! The format-independent table: ordered columns (one per run), the statistic rows and
+//! the failures, shared by every renderer.
+
+use super::{RunRecord, RunStatus};
+
+/// A field of the APE statistics.
+type Field = fn(&eval::Statistics) -> f64;
+
+/// The statistic rows of the paper's Table 2, in its order: label and field.
+const STATISTICS: [(&str, Field); 5] = [
+    ("max", |s| s.max),
+    ("mean", |s| s.mean),
+    ("median", |s| s.median),
+    ("rmse", |s| s.rmse),
+    ("std", |s| s.std),
+];
+/// Decimals of the statistic rows (metres: millimetre resolution, as in the paper).
+const STATISTIC_DECIMALS: usize = 3;
+/// Label and decimals of the real-time factor row.
+const RTF_LABEL: &str = "RTF";
+const RTF_DECIMALS: usize = 1;
+
+/// One column: the run of one plugin on one scenario.
+#[derive(Debug)]
+pub(super) struct Column<'a> {
+    pub(super) run: &'a RunRecord,
+    /// Position of the plugin in the plugin order (its colour in the plots).
+    pub(super) plugin_index: usize,
+    /// The failure reason on one line; `None` for an ok run.
+    pub(super) failure: Option<String>,
+}
+
+/// One table cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Cell {
+    Value(f64),
+    Failed,
+    /// The run is ok but the value is missing or not finite.
+    Missing,
+}
+
+/// One row of cells, one per column.
+#[derive(Debug)]
+pub(super) struct Row {
+    pub(super) label: &'static str,
+    pub(super) cells: Vec<Cell>,
+    decimals: usize,
+}
+
+impl Row {
+    /// The text of cell `i`: the value with the row's fixed decimals, `failed` or `n/a`.
+    pub(super) fn text(&self, i: usize) -> String {
+        match self.cells[i] {
+            Cell::Value(v) => format!("{v:.prec$}", prec = self.decimals),
+            Cell::Failed => "failed".to_owned(),
+            Cell::Missing => "n/a".to_owned(),
+        }
+    }
+}
+
+/// The runs in column order: scenario by scenario, each with its systems in plugin order.
+#[derive(Debug)]
+pub(super) struct Table<'a> {
+    /// All scenarios in order, including those without runs.
+    pub(super) scenarios: Vec<&'a str>,
+    pub(super) columns: Vec<Column<'a>>,
+}
+
+/// `given` followed by the names of `extra` not in it yet, in order of first appearance.
+fn ordered<'a>(given: &'a [String], extra: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut names: Vec<&str> = Vec::new();
+    for name in given.iter().map(String::as_str).chain(extra) {
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    names
+}
+
+/// `text` on one line with single spaces; a placeholder if it is blank.
+fn one_line(text: &str) -> String {
+    let line = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    if line.is_empty() {
+        "no reason given".to_owned()
+    } else {
+        line
+    }
+}
+
+impl<'a> Table<'a> {
+    /// Orders `runs` into columns; errors if two runs share a scenario and plugin.
+    pub(super) fn new(
+        scenarios: &'a [String],
+        plugins: &'a [String],
+        runs: &'a [RunRecord],
+    ) -> anyhow::Result<Self> {
+        let scenarios = ordered(scenarios, runs.iter().map(|r| r.scenario.as_str()));
+        let plugins = ordered(plugins, runs.iter().map(|r| r.plugin.as_str()));
+        let mut columns = Vec::with_capacity(runs.len());
+        for &scenario in &scenarios {
+            for (plugin_index, &plugin) in plugins.iter().enumerate() {
+                let mut matching = runs
+                    .iter()
+                    .filter(|r| r.scenario == scenario && r.plugin == plugin);
+                let Some(run) = matching.next() else {
+                    continue;
+                };
+                anyhow::ensure!(
+                    matching.next().is_none(),
+                    "two runs of plugin {plugin:?} on scenario {scenario:?}: expected one run per pair"
+                );
+                let failure = match &run.status {
+                    RunStatus::Ok => None,
+                    RunStatus::Failed(reason) => Some(one_line(reason)),
+                };
+                columns.push(Column {
+                    run,
+                    plugin_index,
+                    failure,
+                });
+            }
+        }
+        Ok(Self { scenarios, columns })
+    }
+
+    /// The scenarios that have columns, each with the range of its columns.
+    pub(super) fn groups(&self) -> Vec<(&'a str, std::ops::Range<usize>)> {
+        let mut groups: Vec<(&str, std::ops::Range<usize>)> = Vec::new();
+        for (i, column) in self.columns.iter().enumerate() {
+            match groups.last_mut() {
+                Some((scenario, range)) if *scenario == column.run.scenario => range.end = i + 1,
+                _ => groups.push((column.run.scenario.as_str(), i..i + 1)),
+            }
+        }
+        groups
+    }
+
+    /// The columns of `scenario`.
+    pub(super) fn columns_of<'t>(
+        &'t self,
+        scenario: &'t str,
+    ) -> impl Iterator<Item = &'t Column<'a>> + 't {
+        self.columns
+            .iter()
+            .filter(move |c| c.run.scenario == scenario)
+    }
+
+    /// The rows `max`, `mean`, `median`, `rmse`, `std` and `RTF`.
+    pub(super) fn rows(&self) -> Vec<Row> {
+        let cell = |column: &Column, value: Option<f64>| match (&column.failure, value) {
+            (Some(_), _) => Cell::Failed,
+            (None, Some(v)) if v.is_finite() => Cell::Value(v),
+            (None, _) => Cell::Missing,
+        };
+        let mut rows: Vec<Row> = STATISTICS
+            .iter()
+            .map(|&(label, field)| Row {
+                label,
+                cells: self
+                    .columns
+                    .iter()
+                    .map(|c| cell(c, c.run.ape.as_ref().map(field)))
+                    .collect(),
+                decimals: STATISTIC_DECIMALS,
+            })
+            .collect();
+        rows.push(Row {
+            label: RTF_LABEL,
+            cells: self
+                .columns
+                .iter()
+                .map(|c| cell(c, c.run.realtime_factor))
+                .collect(),
+            decimals: RTF_DECIMALS,
+        });
+        rows
+    }
+
+    /// The failed runs in column order: (scenario, plugin, reason on one line).
+    pub(super) fn failures(&self) -> impl Iterator<Item = (&'a str, &'a str, &str)> {
+        self.columns.iter().filter_map(|c| {
+            c.failure
+                .as_deref()
+                .map(|reason| (c.run.scenario.as_str(), c.run.plugin.as_str(), reason))
+        })
+    }
+}

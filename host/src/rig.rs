@@ -1,0 +1,103 @@
+//! The sensor rig handed to plugins, described from the simulator's configuration.
+
+use std::collections::BTreeMap;
+
+use plugin_api::{Rig, SensorKind, SensorSpec};
+use sim::config::{NoiseProfile, Scan2dConfig, Side, SimConfig};
+
+fn spec(name: &str, kind: SensorKind, rate_hz: f64) -> SensorSpec {
+    SensorSpec {
+        name: name.to_owned(),
+        kind,
+        rate_hz,
+        base_from_sensor_xyz: [0.0; 3],
+        base_from_sensor_xyzw: [0.0, 0.0, 0.0, 1.0],
+        intrinsics: BTreeMap::new(),
+        noise: BTreeMap::new(),
+    }
+}
+
+fn figures(pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
+    pairs.iter().map(|&(k, v)| (k.to_owned(), v)).collect()
+}
+
+fn noise_or_zero(profile: NoiseProfile, pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
+    match profile {
+        NoiseProfile::Typical => figures(pairs),
+        NoiseProfile::None => pairs.iter().map(|&(k, _)| (k.to_owned(), 0.0)).collect(),
+    }
+}
+
+fn scan2d(name: &str, cfg: &Scan2dConfig, side: Side) -> SensorSpec {
+    SensorSpec {
+        intrinsics: figures(&[
+            ("samples", cfg.samples as f64),
+            ("angle_min_rad", cfg.angle_min_rad),
+            ("angle_max_rad", cfg.angle_max_rad),
+            ("min_range_m", cfg.min_range_m),
+            ("max_range_m", cfg.max_range_m),
+        ]),
+        noise: noise_or_zero(cfg.noise, &[("range_sigma_m", cfg.range_sigma_m)]),
+        ..spec(name, SensorKind::Scan2d, cfg.rate_hz)
+    }
+    .with_mount(&cfg.mount_for(side).base_from_sensor())
+}
+
+/// Every sensor the simulator can stream, with its datasheet figures.
+pub fn rig(cfg: &SimConfig) -> Rig {
+    let s = &cfg.sensors;
+    let imu = SensorSpec {
+        noise: noise_or_zero(
+            s.imu.noise,
+            &[
+                ("accel_noise_density", s.imu.accel_noise_density),
+                ("accel_bias_random_walk", s.imu.accel_bias_random_walk),
+                ("gyro_noise_density", s.imu.gyro_noise_density),
+                ("gyro_bias_random_walk", s.imu.gyro_bias_random_walk),
+            ],
+        ),
+        ..spec("imu", SensorKind::Imu, s.imu.rate_hz)
+    }
+    .with_mount(&s.imu.mount.base_from_sensor());
+    let odom = SensorSpec {
+        intrinsics: figures(&[
+            ("wheel_x_m", cfg.robot.wheel_x_m),
+            ("wheel_y_m", cfg.robot.wheel_y_m),
+            ("wheel_radius_m", cfg.robot.wheel_radius_m),
+        ]),
+        noise: noise_or_zero(
+            s.wheel_odometry.noise,
+            &[
+                ("scale_error", s.wheel_odometry.scale_error),
+                ("slip_sigma", s.wheel_odometry.slip_sigma),
+                (
+                    "yaw_rate_noise_density",
+                    s.wheel_odometry.yaw_rate_noise_density,
+                ),
+            ],
+        ),
+        ..spec("odom", SensorKind::WheelOdometry, s.wheel_odometry.rate_hz)
+    };
+    let lidar = SensorSpec {
+        intrinsics: figures(&[
+            ("rings", s.lidar.rings as f64),
+            ("columns", s.lidar.columns as f64),
+            ("min_elevation_deg", s.lidar.min_elevation_deg),
+            ("max_elevation_deg", s.lidar.max_elevation_deg),
+            ("min_range_m", s.lidar.min_range_m),
+            ("max_range_m", s.lidar.max_range_m),
+        ]),
+        noise: noise_or_zero(s.lidar.noise, &[("range_sigma_m", s.lidar.range_sigma_m)]),
+        ..spec("lidar", SensorKind::Lidar, s.lidar.rate_hz)
+    }
+    .with_mount(&s.lidar.mount.base_from_sensor());
+    Rig {
+        sensors: vec![
+            imu,
+            odom,
+            lidar,
+            scan2d("scan_front", &s.scan2d_front, Side::Front),
+            scan2d("scan_back", &s.scan2d_back, Side::Back),
+        ],
+    }
+}

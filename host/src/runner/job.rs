@@ -1,0 +1,38 @@
+//! One run's order, as the supervising process hands it to the worker process.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+/// Everything a worker needs to run one (scenario, plugin) pair.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Job {
+    pub scenario: String,
+    /// Simulator configuration file; `None`: the embedded defaults.
+    pub world: Option<PathBuf>,
+    pub seed: u64,
+    /// The plugin library.
+    pub plugin: PathBuf,
+    /// The plugin's parameter table, handed to it verbatim.
+    pub params_toml: String,
+    /// Where the worker writes its files.
+    pub out_dir: PathBuf,
+    /// Address-space limit the worker sets on itself before loading the plugin.
+    pub memory_limit_mb: u64,
+}
+
+/// File names inside a run folder.
+pub mod files {
+    pub const JOB: &str = "job.json";
+    pub const GROUNDTRUTH: &str = "groundtruth.tum";
+    pub const ESTIMATE: &str = "estimate.tum";
+    pub const ONLINE: &str = "online.tum";
+    pub const MAP: &str = "map.ply";
+    pub const GRID: &str = "grid.pgm";
+    pub const GRID_YAML: &str = "grid.yaml";
+    pub const EVENTS: &str = "events.json";
+    pub const TIMING: &str = "timing.json";
+    pub const METRICS: &str = "metrics.json";
+    pub const LOG: &str = "worker.log";
+    pub const RUN: &str = "run.toml";
+}

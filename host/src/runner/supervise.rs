@@ -1,0 +1,97 @@
+//! Runs one job in a child process (this same binary, `vinebench worker`) with a timeout,
+//! and turns however it ended into a one-line reason: a panic, abort, segfault, hang or
+//! runaway allocation in a plugin costs that run only.
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::process::ExitStatusExt;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use super::job::files;
+
+/// How often the child is checked on.
+const POLL: Duration = Duration::from_millis(20);
+
+/// Runs the worker on the job file in `run_dir`; `progress(fraction)` is called as it
+/// advances. `Err` is the failure reason.
+pub fn supervise(
+    run_dir: &Path,
+    timeout: Duration,
+    memory_limit_mb: u64,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<(), String> {
+    let exe = std::env::current_exe()
+        .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
+    let log_path = run_dir.join(files::LOG);
+    let log =
+        std::fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    let mut child = Command::new(exe)
+        .arg("worker")
+        .arg("--job")
+        .arg(run_dir.join(files::JOB))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(log)
+        .spawn()
+        .map_err(|e| format!("cannot start the worker process: {e}"))?;
+    let stdout = child.stdout.take().expect("stdout is piped");
+    let started = Instant::now();
+    std::thread::scope(|scope| {
+        scope.spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let mut parts = line.split_whitespace();
+                if parts.next() == Some("progress") {
+                    let at: f64 = parts.next().and_then(|v| v.parse().ok()).unwrap_or(0.0);
+                    let total: f64 = parts.next().and_then(|v| v.parse().ok()).unwrap_or(1.0);
+                    progress((at / total.max(1.0)).clamp(0.0, 1.0));
+                }
+            }
+        });
+        let status = loop {
+            match child.try_wait() {
+                Ok(Some(status)) => break status,
+                Ok(None) if started.elapsed() > timeout => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    return Err(format!("timed out after {} s", timeout.as_secs_f64()));
+                }
+                Ok(None) => std::thread::sleep(POLL),
+                Err(e) => return Err(format!("lost the worker process: {e}")),
+            }
+        };
+        if status.success() {
+            return Ok(());
+        }
+        let log = std::fs::read_to_string(&log_path).unwrap_or_default();
+        Err(reason(status, &log, memory_limit_mb))
+    })
+}
+
+/// The last line the worker printed as an error, if any.
+fn error_line(log: &str) -> Option<&str> {
+    log.lines().rev().find_map(|l| l.strip_prefix("error: "))
+}
+
+fn reason(status: std::process::ExitStatus, log: &str, memory_limit_mb: u64) -> String {
+    if log.contains("memory allocation of") {
+        return format!("out of memory (limit {memory_limit_mb} MiB)");
+    }
+    let panic = log
+        .lines()
+        .find(|l| l.contains("panicked at"))
+        .map(str::to_owned);
+    match status.signal() {
+        Some(11) => "crashed: segmentation fault (SIGSEGV)".into(),
+        Some(7) => "crashed: bus error (SIGBUS)".into(),
+        Some(6) => match panic {
+            Some(p) => format!("aborted after a panic: {}", p.trim()),
+            None => "aborted (SIGABRT)".into(),
+        },
+        Some(9) => "killed (SIGKILL; out of memory?)".into(),
+        Some(sig) => format!("killed by signal {sig}"),
+        None => error_line(log).map(str::to_owned).unwrap_or_else(|| {
+            format!("worker exited with status {}", status.code().unwrap_or(-1))
+        }),
+    }
+}

@@ -1,0 +1,268 @@
+//! The worker process: simulates one scenario, feeds the plugin in time order (the simulator
+//! produces ahead on its own thread), records every pose the plugin returns and how long
+//! each call took, and writes the run's files. Anything the plugin does wrong ends this
+//! process only.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::mpsc::sync_channel;
+use std::time::Instant;
+
+use anyhow::{Context as _, anyhow, bail};
+use eval::Trajectory;
+use nalgebra::Isometry3;
+use plugin_api::{LaserScan, LidarPoint, PluginInstance, Pose, SensorKind, SlamOutput};
+use sim::sensors::Message;
+use sim::{SensorSet, Simulation};
+
+use super::job::{Job, files};
+use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
+
+/// Messages the simulator may run ahead of the plugin.
+const AHEAD: usize = 256;
+
+/// Which sensors to simulate for a plugin's requirements (ground truth always).
+pub fn sensor_set(kinds: &[SensorKind]) -> anyhow::Result<SensorSet> {
+    let mut set = SensorSet {
+        ground_truth: true,
+        ..SensorSet::default()
+    };
+    for kind in kinds {
+        match kind {
+            SensorKind::Imu => set.imu = true,
+            SensorKind::WheelOdometry => set.wheel_odometry = true,
+            SensorKind::Lidar => set.lidar = true,
+            SensorKind::Scan2d => set.scan2d = true,
+            SensorKind::Rgbd => {
+                bail!("it requires an RGB-D camera, which this simulator does not provide yet")
+            }
+        }
+    }
+    Ok(set)
+}
+
+/// Runs the job; an error is the run's failure reason.
+pub fn work(job: &Job) -> anyhow::Result<()> {
+    let limit = job.memory_limit_mb.saturating_mul(1 << 20);
+    rlimit::setrlimit(rlimit::Resource::AS, limit, limit).context("cannot set the memory limit")?;
+    let started = Instant::now();
+    let config = crate::cmd::simulate::load_config(job.world.as_deref())?;
+    let plugin = plugin_api::load(&job.plugin)?;
+    let sensors = sensor_set(&plugin.requirements.sensors)
+        .map_err(|e| anyhow!("plugin {}: {e}", plugin.name))?;
+    let sim = Simulation::new(&config, &job.scenario, job.seed)?;
+    let rig = crate::rig::rig(&config);
+    write_run_toml(job, &config, &plugin)?;
+    let mut instance = plugin
+        .create(&job.params_toml, &rig)
+        .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
+
+    let total_ns = sim.duration_ns();
+    let mut groundtruth = Vec::new();
+    let mut online = Vec::new();
+    let mut timing = Timing::default();
+    let mut points = Vec::new();
+    let mut next_progress = 0;
+    let mut stdout = std::io::stdout().lock();
+    std::thread::scope(|scope| -> anyhow::Result<()> {
+        let (tx, rx) = sync_channel(AHEAD);
+        let sim = &sim;
+        let producer = scope.spawn(move || {
+            for message in sim.stream(sensors) {
+                if tx.send(message).is_err() {
+                    break;
+                }
+            }
+        });
+        for message in rx {
+            if let Message::GroundTruth(gt) = &message {
+                groundtruth.push(Pose::new(gt.stamp_ns, &gt.world_from_base));
+                continue;
+            }
+            let stamp = message.stamp_ns();
+            let call = Instant::now();
+            let returned = deliver(&mut instance, &message, &mut points).map_err(|e| {
+                anyhow!(
+                    "plugin {} failed at t = {:.3} s: {e}",
+                    plugin.name,
+                    stamp as f64 * 1e-9
+                )
+            })?;
+            timing.record(message.sensor(), call.elapsed());
+            if let Some(pose) = returned {
+                check(&pose, "online pose")?;
+                online.push(pose);
+            }
+            if stamp >= next_progress {
+                writeln!(stdout, "progress {stamp} {total_ns}").ok();
+                stdout.flush().ok();
+                next_progress = stamp + total_ns / 100;
+            }
+        }
+        producer
+            .join()
+            .map_err(|_| anyhow!("the simulator thread panicked"))?;
+        Ok(())
+    })?;
+    let call = Instant::now();
+    let output = instance
+        .finish()
+        .map_err(|e| anyhow!("plugin {} failed in finish: {e}", plugin.name))?;
+    timing.record("finish", call.elapsed());
+    if output.trajectory.is_empty() {
+        bail!("plugin {} returned an empty trajectory", plugin.name);
+    }
+    for pose in &output.trajectory {
+        check(pose, "final pose")?;
+    }
+    write_outputs(&job.out_dir, &groundtruth, &online, &output)?;
+    let wall = started.elapsed().as_secs_f64();
+    let simulated = total_ns as f64 * 1e-9;
+    let report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
+    write_json(&job.out_dir.join(files::TIMING), &report)?;
+    writeln!(stdout, "progress {total_ns} {total_ns}").ok();
+    Ok(())
+}
+
+/// A pose must be finite with a unit quaternion: an invalid one fails the run, it is
+/// never evaluated.
+fn check(pose: &Pose, what: &str) -> anyhow::Result<()> {
+    if pose.isometry().is_none() {
+        bail!(
+            "the plugin returned an invalid {what} (NaN, infinite or non-unit quaternion) at t = {:.3} s",
+            pose.stamp_ns as f64 * 1e-9
+        );
+    }
+    Ok(())
+}
+
+/// Hands one simulator message to the plugin.
+fn deliver(
+    instance: &mut PluginInstance,
+    message: &Message,
+    points: &mut Vec<LidarPoint>,
+) -> Result<Option<Pose>, plugin_api::PluginError> {
+    match message {
+        Message::GroundTruth(_) => Ok(None),
+        Message::Imu(m) => instance.on_imu(&plugin_api::Imu {
+            stamp_ns: m.stamp_ns,
+            accel_mps2: m.accel_mps2.into(),
+            gyro_rps: m.gyro_rps.into(),
+        }),
+        Message::WheelOdometry(m) => instance.on_wheel_odometry(&plugin_api::WheelOdometry {
+            stamp_ns: m.stamp_ns,
+            linear_mps: m.linear_mps,
+            angular_rps: m.angular_rps,
+            odom_from_base: Pose::new(m.stamp_ns, &m.odom_from_base),
+        }),
+        Message::Lidar(scan) => {
+            points.clear();
+            points.extend(scan.points.iter().map(|p| LidarPoint {
+                x: p.x,
+                y: p.y,
+                z: p.z,
+                intensity: p.intensity,
+                time_s: p.time_s,
+                ring: p.ring,
+            }));
+            instance.on_point_cloud(&plugin_api::PointCloud {
+                stamp_ns: scan.stamp_ns,
+                sensor: "lidar",
+                points,
+            })
+        }
+        Message::Scan2d(s) => instance.on_laser_scan(&LaserScan {
+            stamp_ns: s.stamp_ns,
+            sensor: s.side.name(),
+            angle_min_rad: s.angle_min_rad,
+            angle_increment_rad: s.angle_increment_rad,
+            time_increment_s: s.time_increment_s,
+            range_min_m: s.range_min_m,
+            range_max_m: s.range_max_m,
+            ranges_m: &s.ranges_m,
+            intensities: &s.intensities,
+        }),
+    }
+}
+
+fn trajectory(poses: &[Pose]) -> Trajectory {
+    Trajectory {
+        stamps: poses.iter().map(|p| p.stamp_ns as f64 * 1e-9).collect(),
+        poses: poses
+            .iter()
+            .map(|p| p.isometry().unwrap_or_else(Isometry3::identity))
+            .collect(),
+    }
+}
+
+fn write_outputs(
+    dir: &Path,
+    groundtruth: &[Pose],
+    online: &[Pose],
+    output: &SlamOutput,
+) -> anyhow::Result<()> {
+    eval::write_tum(dir.join(files::GROUNDTRUTH), &trajectory(groundtruth))?;
+    eval::write_tum(dir.join(files::ESTIMATE), &trajectory(&output.trajectory))?;
+    if !online.is_empty() {
+        eval::write_tum(dir.join(files::ONLINE), &trajectory(online))?;
+    }
+    if let Some(map) = &output.map {
+        super::outputs::write_ply(&dir.join(files::MAP), map)?;
+    }
+    if let Some(grid) = &output.grid {
+        super::outputs::write_grid(&dir.join(files::GRID), &dir.join(files::GRID_YAML), grid)?;
+    }
+    write_json(&dir.join(files::EVENTS), &output.events)?;
+    Ok(())
+}
+
+/// run.toml: everything that determined this run, resolved.
+fn write_run_toml(
+    job: &Job,
+    config: &sim::SimConfig,
+    plugin: &plugin_api::LoadedPlugin,
+) -> anyhow::Result<()> {
+    let mut doc = toml::Table::new();
+    let mut put = |k: &str, v: toml::Value| {
+        doc.insert(k.to_owned(), v);
+    };
+    put("scenario", job.scenario.clone().into());
+    put("seed", toml::Value::Integer(job.seed as i64));
+    put("world_seed", toml::Value::Integer(config.world_seed as i64));
+    put(
+        "world",
+        job.world
+            .as_ref()
+            .map_or("configs/world.toml (embedded)".to_owned(), |p| {
+                p.display().to_string()
+            })
+            .into(),
+    );
+    put("vinebench_version", env!("CARGO_PKG_VERSION").into());
+    put("plugin_api_version", plugin_api::API_VERSION.into());
+    let mut p = toml::Table::new();
+    p.insert("name".into(), plugin.name.clone().into());
+    p.insert("version".into(), plugin.version.clone().into());
+    p.insert("path".into(), plugin.path.display().to_string().into());
+    p.insert(
+        "sensors".into(),
+        toml::Value::Array(
+            plugin
+                .requirements
+                .sensors
+                .iter()
+                .map(|k| toml::Value::from(k.name()))
+                .collect(),
+        ),
+    );
+    let params: toml::Table = toml::from_str(&job.params_toml).unwrap_or_default();
+    p.insert("params".into(), toml::Value::Table(params));
+    put("plugin", toml::Value::Table(p));
+    let path = job.out_dir.join(files::RUN);
+    std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())
+}
+
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| path.display().to_string())
+}

@@ -1,0 +1,58 @@
+//! The only crate a vinebench plugin author needs.
+//!
+//! Implement [`SlamSystem`] for your type and call [`export_plugin!`]: the crate builds a
+//! `cdylib` that the `vinebench` host loads by name or path, feeds with sensor messages in
+//! time order, and evaluates. The ABI (abi_stable) stays inside this crate: you see plain
+//! Rust types, slices, `nalgebra` poses and `Result`s.
+//!
+//! ```ignore
+//! use plugin_api::{export_plugin, PluginError, Requirements, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, Pose};
+//!
+//! struct Odometry { poses: Vec<Pose> }
+//!
+//! impl SlamSystem for Odometry {
+//!     const NAME: &'static str = "my-odometry";
+//!     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
+//!     fn requirements() -> Requirements { Requirements::online(&[SensorKind::WheelOdometry]) }
+//!     fn new(_config: &str, _rig: &Rig) -> Result<Self, PluginError> { Ok(Self { poses: Vec::new() }) }
+//!     fn on_wheel_odometry(&mut self, m: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
+//!         let pose = Pose { stamp_ns: m.stamp_ns, ..m.odom_from_base };
+//!         self.poses.push(pose);
+//!         Ok(Some(pose))
+//!     }
+//!     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+//!         Ok(SlamOutput { trajectory: std::mem::take(&mut self.poses), ..SlamOutput::default() })
+//!     }
+//! }
+//!
+//! export_plugin!(Odometry);
+//! ```
+
+// abi_stable's derives and `#[sabi_trait]` expand to unsafe code (raw vtables, FFI
+// function pointers); it is confined to the generated glue in `ffi` and the loader.
+#![allow(unsafe_code)]
+
+mod ffi;
+mod loader;
+mod messages;
+mod rig;
+mod system;
+
+pub use loader::{LoadError, LoadedPlugin, PluginInstance, load};
+pub use messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
+pub use rig::{Rig, SensorKind, SensorSpec};
+pub use system::{
+    Event, EventKind, Mode, OccupancyGrid, PluginError, Requirements, SlamOutput, SlamSystem,
+};
+
+/// This crate's version: a plugin and the host must agree on it.
+pub const API_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// Used by [`export_plugin!`]; not part of the API.
+#[doc(hidden)]
+pub mod __private {
+    pub use crate::ffi::{PluginModuleRef, module};
+    pub use abi_stable;
+}
+
+include!(concat!(env!("OUT_DIR"), "/export_plugin.rs"));

@@ -1,0 +1,191 @@
+//! The host side: loads a plugin library, checks it was built against this plugin-api, and
+//! drives it. Each library is loaded through its own header (`lib_header_from_path`), so two
+//! plugins in one process are two modules (`RootModule::load_from_file` would cache the
+//! first one per module type).
+
+use std::path::{Path, PathBuf};
+
+use abi_stable::library::{LibraryError, lib_header_from_path};
+use abi_stable::std_types::{ROption, RResult, RString};
+
+use crate::ffi::{
+    LaserScanFfi, PluginModuleRef, PointCloudFfi, RgbdFrameFfi, SlamBox, output_from_ffi,
+};
+use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::rig::Rig;
+use crate::system::{PluginError, Requirements, SlamOutput};
+
+/// Why a library could not be used as a plugin: one line naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error(
+        "{path}: built against plugin-api {plugin}, but this vinebench has plugin-api {host}; rebuild the plugin against {host}"
+    )]
+    Version {
+        path: PathBuf,
+        plugin: String,
+        host: String,
+    },
+    #[error(
+        "{path}: the plugin-api types it was built with differ in layout from this vinebench's; rebuild the plugin against plugin-api {host}"
+    )]
+    Layout { path: PathBuf, host: String },
+    #[error("{path}: {message}")]
+    Other { path: PathBuf, message: String },
+}
+
+/// A loaded plugin library, not yet created.
+#[derive(Debug, Clone)]
+pub struct LoadedPlugin {
+    pub path: PathBuf,
+    pub name: String,
+    pub version: String,
+    pub requirements: Requirements,
+    module: PluginModuleRef,
+}
+
+impl std::fmt::Debug for PluginModuleRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("PluginModuleRef")
+    }
+}
+
+fn first_line(text: &str) -> String {
+    text.lines()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("")
+        .trim()
+        .to_owned()
+}
+
+fn describe(path: &Path, e: LibraryError) -> LoadError {
+    let host = crate::API_VERSION.to_owned();
+    match e {
+        LibraryError::IncompatibleVersionNumber { actual_version, .. } => LoadError::Version {
+            path: path.to_owned(),
+            plugin: actual_version.to_string(),
+            host,
+        },
+        LibraryError::AbiInstability(_) => LoadError::Layout {
+            path: path.to_owned(),
+            host,
+        },
+        LibraryError::GetSymbolError { .. } => LoadError::Other {
+            path: path.to_owned(),
+            message:
+                "not a vinebench plugin (no exported root module; did it call export_plugin!?)"
+                    .into(),
+        },
+        other => LoadError::Other {
+            path: path.to_owned(),
+            message: first_line(&other.to_string()),
+        },
+    }
+}
+
+/// Loads the plugin library at `path`.
+pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
+    let module = lib_header_from_path(path)
+        .and_then(|header| header.init_root_module::<PluginModuleRef>())
+        .map_err(|e| describe(path, e))?;
+    let info = (module.info())();
+    let requirements = match info.requirements_toml {
+        RResult::ROk(text) => toml::from_str(&text).map_err(|e| LoadError::Other {
+            path: path.to_owned(),
+            message: format!("unreadable requirements: {}", e.message()),
+        })?,
+        RResult::RErr(e) => {
+            return Err(LoadError::Other {
+                path: path.to_owned(),
+                message: format!("requirements() failed: {e}"),
+            });
+        }
+    };
+    Ok(LoadedPlugin {
+        path: path.to_owned(),
+        name: info.name.into_string(),
+        version: info.version.into_string(),
+        requirements,
+        module,
+    })
+}
+
+impl LoadedPlugin {
+    /// Creates the system with its parameter table (TOML, verbatim) and the rig.
+    pub fn create(&self, config_toml: &str, rig: &Rig) -> Result<PluginInstance, PluginError> {
+        let create = self.module.create();
+        match create(config_toml.into(), rig.to_toml().as_str().into()) {
+            RResult::ROk(inner) => Ok(PluginInstance { inner }),
+            RResult::RErr(e) => Err(PluginError(e.into_string())),
+        }
+    }
+}
+
+/// A created plugin, driven by the host.
+pub struct PluginInstance {
+    inner: SlamBox,
+}
+
+impl std::fmt::Debug for PluginInstance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("PluginInstance")
+    }
+}
+
+fn pose(r: RResult<ROption<Pose>, RString>) -> Result<Option<Pose>, PluginError> {
+    match r {
+        RResult::ROk(p) => Ok(p.into_option()),
+        RResult::RErr(e) => Err(PluginError(e.into_string())),
+    }
+}
+
+impl PluginInstance {
+    pub fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
+        pose(self.inner.on_imu(imu))
+    }
+
+    pub fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
+        pose(self.inner.on_wheel_odometry(odom))
+    }
+
+    pub fn on_point_cloud(&mut self, c: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
+        pose(self.inner.on_point_cloud(PointCloudFfi {
+            stamp_ns: c.stamp_ns,
+            sensor: c.sensor.into(),
+            points: c.points.into(),
+        }))
+    }
+
+    pub fn on_laser_scan(&mut self, s: &LaserScan<'_>) -> Result<Option<Pose>, PluginError> {
+        pose(self.inner.on_laser_scan(LaserScanFfi {
+            stamp_ns: s.stamp_ns,
+            sensor: s.sensor.into(),
+            angle_min_rad: s.angle_min_rad,
+            angle_increment_rad: s.angle_increment_rad,
+            time_increment_s: s.time_increment_s,
+            range_min_m: s.range_min_m,
+            range_max_m: s.range_max_m,
+            ranges_m: s.ranges_m.into(),
+            intensities: s.intensities.into(),
+        }))
+    }
+
+    pub fn on_rgbd(&mut self, f: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
+        pose(self.inner.on_rgbd(RgbdFrameFfi {
+            stamp_ns: f.stamp_ns,
+            sensor: f.sensor.into(),
+            width: f.width,
+            height: f.height,
+            rgb: f.rgb.into(),
+            depth_m: f.depth_m.into(),
+            intrinsics: f.intrinsics,
+        }))
+    }
+
+    pub fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        match self.inner.finish() {
+            RResult::ROk(o) => output_from_ffi(o).map_err(PluginError),
+            RResult::RErr(e) => Err(PluginError(e.into_string())),
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! Sensor messages as a plugin receives them. Plain `#[repr(C)]` data: time in integer
+//! nanoseconds since the start of the run, SI units, sensor-frame coordinates.
+
+use abi_stable::StableAbi;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+
+/// A stamped rigid transform (`a_from_b`; which frames is said where it is used).
+#[repr(C)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    pub stamp_ns: i64,
+    pub translation: [f64; 3],
+    /// Unit quaternion, (x, y, z, w).
+    pub rotation_xyzw: [f64; 4],
+}
+
+impl Pose {
+    pub fn new(stamp_ns: i64, pose: &Isometry3<f64>) -> Self {
+        let t = pose.translation.vector;
+        let q = pose.rotation.coords;
+        Self {
+            stamp_ns,
+            translation: [t.x, t.y, t.z],
+            rotation_xyzw: [q.x, q.y, q.z, q.w],
+        }
+    }
+
+    /// The transform; `None` if it is not finite or its quaternion is not unit length (±1e-6).
+    pub fn isometry(&self) -> Option<Isometry3<f64>> {
+        let [x, y, z, w] = self.rotation_xyzw;
+        let finite = self
+            .translation
+            .iter()
+            .chain(&self.rotation_xyzw)
+            .all(|v| v.is_finite());
+        let q = Quaternion::new(w, x, y, z);
+        if !finite || (q.norm() - 1.0).abs() > 1e-6 {
+            return None;
+        }
+        let [tx, ty, tz] = self.translation;
+        Some(Isometry3::from_parts(
+            Translation3::new(tx, ty, tz),
+            UnitQuaternion::new_normalize(q),
+        ))
+    }
+}
+
+/// One IMU reading in the IMU frame: specific force (≈ +9.81 m/s² up at rest) and angular rate.
+#[repr(C)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq)]
+pub struct Imu {
+    pub stamp_ns: i64,
+    pub accel_mps2: [f64; 3],
+    pub gyro_rps: [f64; 3],
+}
+
+/// Wheel odometry: forward speed and yaw rate of the base from the encoders, and the pose
+/// the robot integrated from them (`odom_from_base`, starting at the identity).
+#[repr(C)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq)]
+pub struct WheelOdometry {
+    pub stamp_ns: i64,
+    pub linear_mps: f64,
+    pub angular_rps: f64,
+    pub odom_from_base: Pose,
+}
+
+/// One lidar return in the sensor frame, at its own firing time.
+#[repr(C)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq, Default)]
+pub struct LidarPoint {
+    pub x: f32,
+    pub y: f32,
+    pub z: f32,
+    /// Calibrated reflectivity, 0-255.
+    pub intensity: f32,
+    /// Firing time after the cloud's stamp, seconds.
+    pub time_s: f32,
+    /// Beam index from the lowest (0) upwards.
+    pub ring: u16,
+}
+
+/// One revolution of a spinning lidar, stamped at the start of the sweep.
+#[derive(Debug, Clone, Copy)]
+pub struct PointCloud<'a> {
+    pub stamp_ns: i64,
+    /// The sensor's name in the [`crate::Rig`].
+    pub sensor: &'a str,
+    pub points: &'a [LidarPoint],
+}
+
+/// A planar scan laid out like ROS `sensor_msgs/LaserScan` (no return: `+inf`).
+#[derive(Debug, Clone, Copy)]
+pub struct LaserScan<'a> {
+    pub stamp_ns: i64,
+    pub sensor: &'a str,
+    pub angle_min_rad: f32,
+    pub angle_increment_rad: f32,
+    pub time_increment_s: f32,
+    pub range_min_m: f32,
+    pub range_max_m: f32,
+    pub ranges_m: &'a [f32],
+    pub intensities: &'a [f32],
+}
+
+/// A registered RGB-D frame: RGB8 row-major, depth in metres (0 or NaN: invalid), pinhole
+/// intrinsics `[fx, fy, cx, cy]` in pixels.
+#[derive(Debug, Clone, Copy)]
+pub struct RgbdFrame<'a> {
+    pub stamp_ns: i64,
+    pub sensor: &'a str,
+    pub width: u32,
+    pub height: u32,
+    pub rgb: &'a [u8],
+    pub depth_m: &'a [f32],
+    pub intrinsics: [f64; 4],
+}

@@ -1,0 +1,137 @@
+//! The trait a SLAM plugin implements, and what it returns.
+
+use serde::{Deserialize, Serialize};
+
+use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::rig::{Rig, SensorKind};
+
+/// An error of a plugin, shown to the user as one line.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct PluginError(pub String);
+
+impl PluginError {
+    pub fn new(message: impl Into<String>) -> Self {
+        Self(message.into())
+    }
+}
+
+/// Whether the system estimates while the data arrives or only at the end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    #[default]
+    Online,
+    Offline,
+}
+
+/// What a plugin needs from the host, asked before it is created.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct Requirements {
+    /// Sensor kinds the host must stream to it; others are not simulated for it.
+    pub sensors: Vec<SensorKind>,
+    pub mode: Mode,
+}
+
+impl Requirements {
+    pub fn online(sensors: &[SensorKind]) -> Self {
+        Self {
+            sensors: sensors.to_vec(),
+            mode: Mode::Online,
+        }
+    }
+}
+
+/// Something that happened during a run, for the report.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EventKind {
+    LoopClosureAccepted,
+    LoopClosureRejected,
+    TrackingLost,
+    TrackingRecovered,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Event {
+    pub stamp_ns: i64,
+    pub kind: EventKind,
+    /// Free text, e.g. which keyframes a loop closure joined and why it was rejected.
+    pub detail: String,
+}
+
+/// A 2D occupancy grid in the ROS map_server convention: cells row-major from the origin
+/// corner, values 0 (free) to 100 (occupied), -1 unknown.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OccupancyGrid {
+    pub resolution_m: f64,
+    /// World position of cell (0, 0)'s corner and the grid's yaw: [x, y, yaw].
+    pub origin: [f64; 3],
+    pub width: u32,
+    pub height: u32,
+    pub cells: Vec<i8>,
+}
+
+/// What a plugin returns when the data is over.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SlamOutput {
+    /// The final (optimised) trajectory of the base, `map_from_base`.
+    pub trajectory: Vec<Pose>,
+    /// Map points in the map frame.
+    pub map: Option<Vec<[f32; 3]>>,
+    pub grid: Option<OccupancyGrid>,
+    pub events: Vec<Event>,
+}
+
+/// A SLAM system as a plugin author writes it.
+///
+/// Lifecycle, in this order:
+/// 1. [`SlamSystem::requirements`] — asked before anything else, to decide which sensors
+///    to simulate and stream;
+/// 2. [`SlamSystem::new`] — with the plugin's parameter table (the TOML the user wrote for
+///    it, verbatim) and the sensor rig;
+/// 3. the message callbacks, in timestamp order of availability (a lidar sweep arrives at its
+///    end, stamped at its start). Each may return a pose estimate `map_from_base` at some
+///    stamp: the host records these as the online trajectory. The defaults ignore the
+///    message;
+/// 4. [`SlamSystem::finish`] — once, after the last message: the final trajectory, optional
+///    map and grid, and events.
+///
+/// A panic in any of them is caught inside the plugin and reported as an error of this run.
+pub trait SlamSystem: Sized + Send + 'static {
+    /// Short name, e.g. `"lio"`; the host finds plugins by it.
+    const NAME: &'static str;
+    /// The plugin's own version.
+    const VERSION: &'static str;
+
+    fn requirements() -> Requirements;
+
+    fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError>;
+
+    fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
+        let _ = imu;
+        Ok(None)
+    }
+
+    fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
+        let _ = odom;
+        Ok(None)
+    }
+
+    fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
+        let _ = cloud;
+        Ok(None)
+    }
+
+    fn on_laser_scan(&mut self, scan: &LaserScan<'_>) -> Result<Option<Pose>, PluginError> {
+        let _ = scan;
+        Ok(None)
+    }
+
+    fn on_rgbd(&mut self, frame: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
+        let _ = frame;
+        Ok(None)
+    }
+
+    fn finish(&mut self) -> Result<SlamOutput, PluginError>;
+}
