@@ -1,12 +1,10 @@
 #!/usr/bin/env bash
-# The main job on the embedded defaults. Until the plugin host lands (the benchmark of
-# SLAM plugins), this drives the four scenarios of the paper through the simulator with
-# every sensor and writes each one's data and top view to out/<scenario>/.
+# The main job: the paper's benchmark (configs/paper.toml) on the embedded defaults. Builds
+# the host and every plugin of the workspace, runs each (scenario, system) pair in its own
+# process, prints the paper-style table and writes results/paper/ (results/latest links it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 
-cargo build --release -p vinebench
-for scenario in s0 s1 s2 s3; do
-  ./target/release/vinebench simulate --scenario "$scenario" --sensors all --out "out/$scenario"
-done
+cargo build --release --workspace
+./target/release/vinebench bench configs/paper.toml "$@"

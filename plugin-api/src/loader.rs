@@ -83,10 +83,30 @@ fn describe(path: &Path, e: LibraryError) -> LoadError {
     }
 }
 
+/// `major.minor` of a version string: plugin-api versions that share it are compatible
+/// (semver for 0.x releases: a new minor version may change the ABI).
+fn compatible_part(version: &str) -> &str {
+    let mut dots = version.match_indices('.');
+    match (dots.next(), dots.next()) {
+        (Some(_), Some((second, _))) => &version[..second],
+        _ => version,
+    }
+}
+
 /// Loads the plugin library at `path`.
 pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
-    let module = lib_header_from_path(path)
-        .and_then(|header| header.init_root_module::<PluginModuleRef>())
+    let header = lib_header_from_path(path).map_err(|e| describe(path, e))?;
+    // Compare versions before layouts: a version mismatch is the clearer message.
+    let plugin_version = header.version_strings().version.as_str();
+    if compatible_part(plugin_version) != compatible_part(crate::API_VERSION) {
+        return Err(LoadError::Version {
+            path: path.to_owned(),
+            plugin: plugin_version.to_owned(),
+            host: crate::API_VERSION.to_owned(),
+        });
+    }
+    let module = header
+        .init_root_module::<PluginModuleRef>()
         .map_err(|e| describe(path, e))?;
     let info = (module.info())();
     let requirements = match info.requirements_toml {
@@ -187,5 +207,17 @@ impl PluginInstance {
             RResult::ROk(o) => output_from_ffi(o).map_err(PluginError),
             RResult::RErr(e) => Err(PluginError(e.into_string())),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::compatible_part;
+
+    #[test]
+    fn compatibility_is_major_and_minor() {
+        assert_eq!(compatible_part("0.1.7"), "0.1");
+        assert_eq!(compatible_part("1.2.3-rc.1"), "1.2");
+        assert_ne!(compatible_part("0.2.0"), compatible_part("0.1.0"));
     }
 }

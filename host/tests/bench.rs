@@ -1,0 +1,406 @@
+//! End-to-end checks of the plugin host: real plugins loaded from their `.so` by the real
+//! `vinebench` binary, on short simulated routes, with assertions on the numbers that come
+//! out. Plugins built by this workspace are found in target/<profile>/deps (cargo puts test
+//! builds of cdylibs there); out-of-tree plugins are built by the tests themselves.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vinebench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args(args)
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .output()
+        .expect("vinebench runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Where cargo put this workspace's plugin libraries for this test build.
+fn deps_dir() -> PathBuf {
+    std::env::current_exe()
+        .expect("test executable path")
+        .parent()
+        .expect("deps directory")
+        .to_owned()
+}
+
+fn plugin_lib(crate_name: &str) -> PathBuf {
+    let path = deps_dir().join(format!(
+        "{}{crate_name}{}",
+        std::env::consts::DLL_PREFIX,
+        std::env::consts::DLL_SUFFIX
+    ));
+    assert!(
+        path.is_file(),
+        "{} missing: build with `cargo test --workspace`",
+        path.display()
+    );
+    path
+}
+
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&t).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn run_bench(dir: &Path, name: &str, toml: &str) -> (Output, PathBuf) {
+    let file = dir.join(format!("{name}.toml"));
+    std::fs::write(&file, toml).expect("write bench file");
+    let out = dir.join(format!("results-{name}"));
+    let o = vinebench(&[
+        "bench",
+        file.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    (o, out)
+}
+
+/// The baseline plugin runs S0 and S1 from its `.so`; the table's numbers are exactly those
+/// of a direct `vinebench eval` of the TUM files the run wrote.
+#[test]
+fn baseline_bench_table_equals_direct_eval_of_written_files() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let lib = plugin_lib("wheel_odometry");
+    let toml = format!(
+        "scenarios = [\"s0\", \"s1\"]\nseed = 4\n[[plugins]]\npath = \"{}\"\nlabel = \"odom\"\n",
+        lib.display()
+    );
+    let (o, out) = run_bench(tmp.path(), "baseline", &toml);
+    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
+    let table = json(&out.join("table.json"));
+    for scenario in ["s0", "s1"] {
+        let row = &table[scenario]["odom"];
+        assert_eq!(row["status"], "ok", "{scenario}: {row}");
+        let run = out.join(scenario).join("odom");
+        for f in [
+            "groundtruth.tum",
+            "estimate.tum",
+            "online.tum",
+            "metrics.json",
+            "timing.json",
+            "run.toml",
+            "events.json",
+        ] {
+            assert!(run.join(f).is_file(), "{scenario}: {f} missing");
+        }
+        let direct = vinebench(&[
+            "eval",
+            run.join("groundtruth.tum").to_str().expect("utf-8"),
+            run.join("estimate.tum").to_str().expect("utf-8"),
+            "--align",
+            "se3",
+            "--json",
+        ]);
+        assert!(
+            direct.status.success(),
+            "eval failed: {}",
+            text(&direct.stderr)
+        );
+        let direct: serde_json::Value =
+            serde_json::from_str(text(&direct.stdout).trim()).expect("eval --json");
+        for stat in ["rmse", "mean", "median", "max", "min", "std"] {
+            assert_eq!(
+                row[stat], direct[stat],
+                "{scenario} {stat}: table vs vinebench eval"
+            );
+        }
+        let rmse = row["rmse"].as_f64().expect("number");
+        // Dead reckoning over 25-49 m with 1-2 % scale errors: centimetres to a metre or two.
+        assert!(
+            (0.005..3.0).contains(&rmse),
+            "{scenario}: baseline ATE RMSE {rmse} m is implausible"
+        );
+        assert!(
+            row["realtime_factor"].as_f64().expect("number") > 1.0,
+            "{scenario}: {row}"
+        );
+    }
+    assert!(
+        out.join("table.md").is_file()
+            && out.join("table.csv").is_file()
+            && out.join("table.tex").is_file()
+    );
+    assert!(out.join("plots/s1.png").is_file() && out.join("plots/s1.svg").is_file());
+    assert!(
+        text(&o.stdout).contains("| rmse"),
+        "the table is printed:\n{}",
+        text(&o.stdout)
+    );
+}
+
+/// The paper's matrix file runs as shipped (plugins found by name on the search path).
+#[test]
+fn paper_bench_prints_the_table_for_s0_to_s3() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let paper = workspace_root().join("configs/paper.toml");
+    let out = tmp.path().join("paper");
+    let o = vinebench(&[
+        "bench",
+        paper.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
+    let stdout = text(&o.stdout);
+    let header = stdout
+        .lines()
+        .find(|l| l.contains("s0"))
+        .unwrap_or_default();
+    for s in ["s0", "s1", "s2", "s3"] {
+        assert!(header.contains(s), "table header lacks {s}:\n{stdout}");
+    }
+    let table = json(&out.join("table.json"));
+    for s in ["s0", "s1", "s2", "s3"] {
+        assert_eq!(
+            table[s]["wheel-odometry"]["status"], "ok",
+            "{s}: {}",
+            table[s]
+        );
+    }
+}
+
+/// Every fault of the injection plugin, inside one bench beside a healthy plugin: the bench
+/// finishes, each faulty run is reported failed with the right reason, and the healthy
+/// run's results are byte-identical to those of a clean bench.
+#[test]
+fn faulty_plugins_cost_their_own_run_only() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let odom = plugin_lib("wheel_odometry");
+    let fault = plugin_lib("fault_plugin");
+    let entry = |label: &str, lib: &Path, params: &str| {
+        format!(
+            "[[plugins]]\npath = \"{}\"\nlabel = \"{label}\"\n[plugins.params]\n{params}\n",
+            lib.display()
+        )
+    };
+    let head =
+        "scenarios = [\"s0\"]\nseed = 9\ntimeout_s = 15.0\nmemory_limit_mb = 1024\njobs = 2\n";
+    let clean = format!("{head}{}", entry("odom", &odom, ""));
+    let faults = [
+        ("panic", "panicked: fault plugin: deliberate panic"),
+        ("abort", "aborted"),
+        ("segfault", "segmentation fault"),
+        ("hang", "timed out after 15 s"),
+        ("alloc", "out of memory (limit 1024 MiB)"),
+        ("nan", "invalid online pose"),
+    ];
+    let mut faulty = format!("{head}{}", entry("odom", &odom, ""));
+    for (f, _) in faults {
+        faulty += &entry(
+            &format!("fault-{f}"),
+            &fault,
+            &format!("fault = \"{f}\"\nafter = 30"),
+        );
+    }
+    let (o, clean_out) = run_bench(tmp.path(), "clean", &clean);
+    assert!(
+        o.status.success(),
+        "clean bench failed: {}",
+        text(&o.stderr)
+    );
+    let (o, faulty_out) = run_bench(tmp.path(), "faulty", &faulty);
+    assert!(
+        o.status.success(),
+        "a bench with faulty plugins must still finish: {}",
+        text(&o.stderr)
+    );
+    let table = json(&faulty_out.join("table.json"));
+    for (f, reason) in faults {
+        let status = table["s0"][format!("fault-{f}")]["status"]
+            .as_str()
+            .unwrap_or_default()
+            .to_owned();
+        assert!(
+            status.starts_with("failed: ") && status.contains(reason),
+            "fault {f}: status '{status}', expected a failure mentioning '{reason}'"
+        );
+    }
+    assert_eq!(table["s0"]["odom"]["status"], "ok");
+    for f in [
+        "estimate.tum",
+        "groundtruth.tum",
+        "online.tum",
+        "metrics.json",
+        "run.toml",
+    ] {
+        let a = std::fs::read(clean_out.join("s0/odom").join(f)).expect("clean file");
+        let b = std::fs::read(faulty_out.join("s0/odom").join(f)).expect("faulty-bench file");
+        assert!(
+            a == b,
+            "s0/odom/{f} differs between the clean and the faulty bench"
+        );
+    }
+}
+
+/// A bad matrix file or a missing plugin is one line naming the culprit, and no results.
+#[test]
+fn bad_bench_inputs_fail_cleanly() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let (o, out) = run_bench(
+        tmp.path(),
+        "typo",
+        "scenarios = [\"s0\"]\nsede = 3\n[[plugins]]\nname = \"wheel-odometry\"\n",
+    );
+    let err = text(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("typo.toml") && err.contains("sede"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert!(!out.exists(), "no results after a bad file");
+    let (o, out) = run_bench(
+        tmp.path(),
+        "missing",
+        "[[plugins]]\nname = \"no-such-slam\"\n",
+    );
+    let err = text(&o.stderr);
+    assert!(!o.status.success() && err.contains("no-such-slam"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert!(!out.exists(), "no results after a missing plugin");
+}
+
+/// Builds a plugin crate outside the workspace (a copy of tests/oot-plugin, optionally
+/// against another plugin-api) with the workspace's lock file, so no new downloads happen.
+fn build_out_of_tree(tmp: &Path, plugin_api: &Path) -> PathBuf {
+    let root = workspace_root();
+    let krate = tmp.join("oot");
+    std::fs::create_dir_all(krate.join("src")).expect("mkdir");
+    let manifest = std::fs::read_to_string(root.join("tests/oot-plugin/Cargo.toml"))
+        .expect("template manifest");
+    let manifest = manifest.replace("../../plugin-api", &plugin_api.display().to_string());
+    std::fs::write(krate.join("Cargo.toml"), manifest).expect("write manifest");
+    std::fs::copy(
+        root.join("tests/oot-plugin/src/lib.rs"),
+        krate.join("src/lib.rs"),
+    )
+    .expect("copy source");
+    std::fs::copy(root.join("Cargo.lock"), krate.join("Cargo.lock")).expect("copy lock");
+    // Shared across test runs so the dependencies build once.
+    let target = root.join("target/oot-plugins");
+    let o = Command::new(env!("CARGO"))
+        .args(["build", "--release", "--manifest-path"])
+        .arg(krate.join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(&target)
+        .output()
+        .expect("cargo runs");
+    assert!(
+        o.status.success(),
+        "building the out-of-tree plugin failed:\n{}",
+        text(&o.stderr)
+    );
+    target.join("release").join(format!(
+        "{}oot_odometry{}",
+        std::env::consts::DLL_PREFIX,
+        std::env::consts::DLL_SUFFIX
+    ))
+}
+
+/// A third party's plugin, built outside the workspace, is discovered on the search path
+/// and run; one built against another plugin-api version is refused in one clear line.
+#[test]
+fn out_of_tree_plugins_are_discovered_and_version_mismatches_refused() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let lib = build_out_of_tree(tmp.path(), &workspace_root().join("plugin-api"));
+    let dir = tmp.path().join("plugins");
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    std::fs::copy(&lib, dir.join(lib.file_name().expect("file name"))).expect("copy plugin");
+    let dir_arg = dir.to_str().expect("utf-8");
+
+    let listed = vinebench(&["plugins", "--plugin-dir", dir_arg]);
+    let listing = text(&listed.stdout);
+    let line = listing
+        .lines()
+        .find(|l| l.starts_with("oot-odometry"))
+        .unwrap_or_else(|| panic!("not listed:\n{listing}"));
+    assert!(
+        line.contains("0.3.0") && line.contains("wheel_odometry"),
+        "name, version, requirements: {line}"
+    );
+
+    let out = tmp.path().join("run");
+    let o = vinebench(&[
+        "run",
+        "--scenario",
+        "s0",
+        "--plugin",
+        "oot-odometry",
+        "--plugin-dir",
+        dir_arg,
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "run failed: {}", text(&o.stderr));
+    let table = json(&out.join("table.json"));
+    assert_eq!(table["s0"]["oot-odometry"]["status"], "ok", "{table}");
+
+    // The same plugin against a plugin-api that claims another version.
+    let other_api = tmp.path().join("plugin-api-0.2");
+    copy_plugin_api_as(&workspace_root().join("plugin-api"), &other_api, "0.2.0");
+    let other = build_out_of_tree(&tmp.path().join("other"), &other_api);
+    let o = vinebench(&[
+        "run",
+        "--scenario",
+        "s0",
+        "--plugin",
+        other.to_str().expect("utf-8"),
+        "--out",
+        tmp.path().join("bad").to_str().expect("utf-8"),
+    ]);
+    let table = json(&tmp.path().join("bad/table.json"));
+    let status = table["s0"]
+        .as_object()
+        .and_then(|m| m.values().next())
+        .map(|v| v["status"].to_string())
+        .unwrap_or_default();
+    assert!(
+        status.contains("built against plugin-api 0.2.0")
+            && status.contains("0.1.0")
+            && !status.contains('\n'),
+        "version mismatch should be one clear line, got {status} (stderr: {})",
+        text(&o.stderr)
+    );
+}
+
+/// A standalone copy of plugin-api whose Cargo version is `version`.
+fn copy_plugin_api_as(from: &Path, to: &Path, version: &str) {
+    std::fs::create_dir_all(to.join("src")).expect("mkdir");
+    for entry in std::fs::read_dir(from.join("src")).expect("read src") {
+        let p = entry.expect("entry").path();
+        std::fs::copy(&p, to.join("src").join(p.file_name().expect("name"))).expect("copy");
+    }
+    std::fs::copy(from.join("build.rs"), to.join("build.rs")).expect("copy build.rs");
+    let manifest = std::fs::read_to_string(from.join("Cargo.toml")).expect("manifest");
+    let manifest = manifest
+        .replace("rust-version.workspace = true\n", "")
+        .replace(
+            "version.workspace = true",
+            &format!("version = \"{version}\""),
+        )
+        .replace("edition.workspace = true", "edition = \"2024\"")
+        .replace("license.workspace = true\n", "")
+        .replace("abi_stable.workspace = true", "abi_stable = \"0.11\"")
+        .replace(
+            "nalgebra.workspace = true",
+            "nalgebra = { version = \"0.34\", features = [\"serde-serialize\"] }",
+        )
+        .replace(
+            "serde.workspace = true",
+            "serde = { version = \"1\", features = [\"derive\"] }",
+        )
+        .replace("thiserror.workspace = true", "thiserror = \"2\"")
+        .replace("toml.workspace = true", "toml = \"0.9\"")
+        .replace("[lints]\nworkspace = true\n", "");
+    std::fs::write(to.join("Cargo.toml"), manifest).expect("write manifest");
+}
