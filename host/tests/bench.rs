@@ -358,6 +358,15 @@ fn out_of_tree_plugins_are_discovered_and_version_mismatches_refused() {
         "--out",
         tmp.path().join("bad").to_str().expect("utf-8"),
     ]);
+    assert!(
+        !o.status.success(),
+        "a single run that fails is a failed command"
+    );
+    assert!(
+        text(&o.stderr).contains("built against plugin-api 0.2.0"),
+        "the error names the versions: {}",
+        text(&o.stderr)
+    );
     let table = json(&tmp.path().join("bad/table.json"));
     let status = table["s0"]
         .as_object()

@@ -74,13 +74,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         memory_limit_mb: cfg.memory_limit_mb,
         alignment: cfg.align.into(),
     };
-    report(&plan)
+    report(&plan).map(drop)
 }
 
-/// Executes a plan and prints its table and where the results are.
-pub fn report(plan: &Plan) -> anyhow::Result<()> {
+/// Executes a plan and prints its table and where the results are. A failed run does not
+/// fail the bench: it is in the table with its reason.
+pub fn report(plan: &Plan) -> anyhow::Result<crate::runner::Executed> {
     let executed = execute(plan)?;
     println!("{}", executed.table_markdown);
     println!("results: {}", executed.dir.display());
-    Ok(())
+    Ok(executed)
 }

@@ -80,7 +80,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         memory_limit_mb: args.memory_limit_mb,
         alignment: align.into(),
     };
-    crate::cmd::bench::report(&plan)
+    let executed = crate::cmd::bench::report(&plan)?;
+    // One run: its failure is the command's failure (the results folder is still written).
+    match executed.records.first().map(|r| &r.status) {
+        Some(crate::report::RunStatus::Failed(why)) => {
+            anyhow::bail!("{} on {} failed: {why}", plan.labels[0], args.scenario)
+        }
+        _ => Ok(()),
+    }
 }
 
 /// A column label for a plugin given by name or path.
