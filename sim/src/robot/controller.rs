@@ -40,31 +40,77 @@ impl Filtered {
     }
 }
 
+/// The base's planar state and its filtered commands.
+#[derive(Debug)]
+struct Base {
+    t: f64,
+    pos: Point2<f64>,
+    yaw: f64,
+    v: Filtered,
+    w: Filtered,
+}
+
+impl Base {
+    fn sample(&self) -> PlanarSample {
+        PlanarSample {
+            t: self.t,
+            x: self.pos.x,
+            y: self.pos.y,
+            yaw: self.yaw,
+        }
+    }
+
+    /// Filters the commands and moves one control period (exact unicycle step with the
+    /// period's constant rates); `None` past the time cap.
+    fn step(
+        &mut self,
+        v_cmd: f64,
+        w_cmd: f64,
+        cfg: &RobotConfig,
+        out: &mut Vec<PlanarSample>,
+    ) -> Option<()> {
+        let dt = CONTROL_DT_S;
+        // The yaw-rate filter's jerk limit is the linear one per metre of track.
+        let yaw_jerk = cfg.max_jerk_mps3 / cfg.wheel_y_m.max(0.1);
+        self.v
+            .track(v_cmd, cfg.max_accel_mps2, cfg.max_jerk_mps3, 3.0, dt);
+        self.w
+            .track(w_cmd, cfg.max_yaw_accel_rps2, yaw_jerk, 6.0, dt);
+        let dyaw = self.w.value * dt;
+        let mid = self.yaw + 0.5 * dyaw;
+        self.pos += Vector2::new(mid.cos(), mid.sin()) * (self.v.value * dt);
+        self.yaw += dyaw;
+        self.t += dt;
+        out.push(self.sample());
+        (self.t <= MAX_DURATION_S).then_some(())
+    }
+
+    fn at_rest(&self) -> bool {
+        [self.v.value, self.w.value, self.v.rate, self.w.rate]
+            .iter()
+            .all(|x| x.abs() <= 1e-6)
+    }
+}
+
 /// Drives `route` and returns the planar state every [`CONTROL_DT_S`], standing still for
 /// `still_s` before and after. `None` if the controller cannot finish within an hour.
 pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
-    let dt = CONTROL_DT_S;
-    let mut pos = route.start;
-    let mut yaw = route.start_yaw;
-    let mut v = Filtered::default();
-    let mut w = Filtered::default();
-    let mut t = 0.0;
-    let mut out = Vec::new();
-    let record = |t: f64, pos: Point2<f64>, yaw: f64, out: &mut Vec<PlanarSample>| {
-        out.push(PlanarSample {
-            t,
-            x: pos.x,
-            y: pos.y,
-            yaw,
-        });
+    let mut base = Base {
+        t: 0.0,
+        pos: route.start,
+        yaw: route.start_yaw,
+        v: Filtered::default(),
+        w: Filtered::default(),
     };
-    let steps_still = (cfg.still_s / dt).round() as usize;
-    for _ in 0..steps_still {
-        record(t, pos, yaw, &mut out);
-        t += dt;
-    }
-    // The yaw-rate filter tracks quickly; its jerk limit is the linear one per metre of track.
-    let yaw_jerk = cfg.max_jerk_mps3 / cfg.wheel_y_m.max(0.1);
+    let mut out = Vec::new();
+    let steps_still = (cfg.still_s / CONTROL_DT_S).round() as usize;
+    let stand_still = |base: &mut Base, out: &mut Vec<PlanarSample>| {
+        for _ in 0..steps_still {
+            out.push(base.sample());
+            base.t += CONTROL_DT_S;
+        }
+    };
+    stand_still(&mut base, &mut out);
     for leg in &route.legs {
         let mut follower = match leg {
             Leg::Drive(points) => Some(PathFollower::new(points)),
@@ -72,16 +118,16 @@ pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
         };
         loop {
             let (v_cmd, w_cmd, done) = match (leg, follower.as_mut()) {
-                (Leg::Drive(_), Some(f)) => f.command(pos, yaw, v.value, cfg),
+                (Leg::Drive(_), Some(f)) => f.command(base.pos, base.yaw, base.v.value, cfg),
                 (Leg::Rotate { yaw: target }, _) => {
-                    let e = wrap(target - yaw);
+                    let e = wrap(target - base.yaw);
                     let w_max = (2.0 * PLAN_DECEL_FRACTION * cfg.max_yaw_accel_rps2 * e.abs())
                         .sqrt()
                         .min(cfg.max_yaw_rate_rps);
                     (
                         0.0,
                         w_max * e.signum(),
-                        e.abs() < 1e-3 && w.value.abs() < 0.02,
+                        e.abs() < 1e-3 && base.w.value.abs() < 0.02,
                     )
                 }
                 (Leg::Drive(_), None) => unreachable!("a drive leg always has a follower"),
@@ -89,39 +135,15 @@ pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
             if done {
                 break;
             }
-            v.track(v_cmd, cfg.max_accel_mps2, cfg.max_jerk_mps3, 3.0, dt);
-            w.track(w_cmd, cfg.max_yaw_accel_rps2, yaw_jerk, 6.0, dt);
-            // Exact unicycle step over dt with constant (v, w).
-            let dyaw = w.value * dt;
-            let mid = yaw + 0.5 * dyaw;
-            pos += Vector2::new(mid.cos(), mid.sin()) * (v.value * dt);
-            yaw += dyaw;
-            t += dt;
-            record(t, pos, yaw, &mut out);
-            if t > MAX_DURATION_S {
-                return None;
-            }
+            base.step(v_cmd, w_cmd, cfg, &mut out)?;
         }
     }
     // Come to rest, then stand still.
-    while v.value.abs() > 1e-6 || w.value.abs() > 1e-6 || v.rate.abs() > 1e-6 || w.rate.abs() > 1e-6
-    {
-        v.track(0.0, cfg.max_accel_mps2, cfg.max_jerk_mps3, 3.0, dt);
-        w.track(0.0, cfg.max_yaw_accel_rps2, yaw_jerk, 6.0, dt);
-        let dyaw = w.value * dt;
-        let mid = yaw + 0.5 * dyaw;
-        pos += Vector2::new(mid.cos(), mid.sin()) * (v.value * dt);
-        yaw += dyaw;
-        t += dt;
-        record(t, pos, yaw, &mut out);
-        if t > MAX_DURATION_S {
-            return None;
-        }
+    while !base.at_rest() {
+        base.step(0.0, 0.0, cfg, &mut out)?;
     }
-    for _ in 0..steps_still {
-        t += dt;
-        record(t, pos, yaw, &mut out);
-    }
+    base.t += CONTROL_DT_S;
+    stand_still(&mut base, &mut out);
     Some(out)
 }
 
