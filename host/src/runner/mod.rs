@@ -89,29 +89,19 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
         std::fs::remove_dir_all(&tmp)?;
     }
     std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
-    let result = run_all(plan, &config, &tmp);
-    let executed = match result {
-        Ok(records) => records,
+    let written = run_all(plan, &config, &tmp).and_then(|(records, truths)| {
+        let table =
+            crate::report::write_reports(&tmp, &plan.scenarios, &plan.labels, &records, &truths)?;
+        std::fs::File::create(tmp.join(MARKER))?;
+        Ok((records, table))
+    });
+    let (records, table) = match written {
+        Ok(v) => v,
         Err(e) => {
             let _ = std::fs::remove_dir_all(&tmp);
             return Err(e);
         }
     };
-    let (records, truths) = executed;
-    let table = match crate::report::write_reports(
-        &tmp,
-        &plan.scenarios,
-        &plan.labels,
-        &records,
-        &truths,
-    ) {
-        Ok(t) => t,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(e);
-        }
-    };
-    std::fs::File::create(tmp.join(MARKER))?;
     if plan.out.exists() {
         std::fs::remove_dir_all(&plan.out).with_context(|| plan.out.display().to_string())?;
     }
