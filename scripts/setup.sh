@@ -15,17 +15,29 @@ if ((${#apt_missing[@]})); then
   apt-get install -y -qq --no-install-recommends "${apt_missing[@]}"
 fi
 
-# evo (the reference trajectory evaluator) in its own virtual environment, for the
-# cross-check tests and the evaluation benchmark. Debian's python forbids global pip installs.
+# Python tools of the tests in their own virtual environment (Debian's python forbids
+# global pip installs): evo, the reference trajectory evaluator (tests/evo), and mcap with
+# mcap-ros2-support, the independent reader of `vinebench record`'s files (tests/mcap).
 vinebench_venv="${VINEBENCH_VENV:-$PWD/target/evo-venv}"
-evo_pin=$(grep -v '^#' tests/evo/requirements.txt | head -n 1)
-if ! "$vinebench_venv/bin/python" -m pip show evo 2>/dev/null | grep -qx "Version: ${evo_pin#evo==}"; then
+if [ ! -x "$vinebench_venv/bin/python" ]; then
   if ! python3 -m venv "$vinebench_venv" >/dev/null 2>&1; then
     export DEBIAN_FRONTEND=noninteractive
     apt-get update -qq && apt-get install -y -qq --no-install-recommends python3-venv
     python3 -m venv "$vinebench_venv"
   fi
-  echo "setup: installing $evo_pin into $vinebench_venv" >&2
-  "$vinebench_venv/bin/python" -m pip install --quiet --disable-pip-version-check -r tests/evo/requirements.txt
 fi
+# Installs a pinned requirements file unless every pin is already installed.
+ensure_requirements() {
+  local installed pin
+  installed=$("$vinebench_venv/bin/python" -m pip freeze 2>/dev/null || true)
+  for pin in $(grep -v '^#' "$1"); do
+    if ! grep -qixF "$pin" <<<"$installed"; then
+      echo "setup: installing $1 into $vinebench_venv" >&2
+      "$vinebench_venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$1"
+      return
+    fi
+  done
+}
+ensure_requirements tests/evo/requirements.txt
+ensure_requirements tests/mcap/requirements.txt
 export PATH="$vinebench_venv/bin:$PATH"

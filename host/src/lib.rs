@@ -3,6 +3,7 @@
 
 pub mod bench_config;
 pub mod cmd;
+pub mod dataset;
 pub mod dump;
 pub mod plugins;
 pub mod report;

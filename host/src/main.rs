@@ -12,6 +12,10 @@ struct Cli {
 enum Command {
     /// Run the simulator along a scenario and optionally dump its sensor data.
     Simulate(vinebench::cmd::simulate::SimulateArgs),
+    /// Record the simulated sensor stream as an MCAP file of ROS 2 messages.
+    Record(vinebench::cmd::record::RecordArgs),
+    /// Export ground truth (TUM) and lidar sweeps (KITTI) for other tools.
+    Export(vinebench::cmd::export::ExportArgs),
     /// Evaluate an estimated trajectory against ground truth (APE / RPE, as evo does).
     Eval(vinebench::cmd::eval::EvalArgs),
     /// Run one plugin on one scenario and score it.
@@ -29,6 +33,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(args) => vinebench::cmd::simulate::run(&args),
+        Command::Record(args) => vinebench::cmd::record::run(&args),
+        Command::Export(args) => vinebench::cmd::export::run(&args),
         Command::Eval(args) => vinebench::cmd::eval::run(&args),
         Command::Run(args) => vinebench::cmd::run::run(&args),
         Command::Bench(args) => vinebench::cmd::bench::run(&args),

@@ -2,7 +2,9 @@
 
 pub mod bench;
 pub mod eval;
+pub mod export;
 pub mod plugins;
+pub mod record;
 pub mod run;
 pub mod simulate;
 pub mod worker;

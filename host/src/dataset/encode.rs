@@ -1,0 +1,163 @@
+//! Simulator messages to ROS 2 messages in CDR (field order as in [`super::schemas`]).
+
+use nalgebra::{Isometry3, Vector3};
+use sim::sensors::{GroundTruth, ImuSample, LaserScan, LidarScan, WheelOdometry};
+
+use super::EPOCH_NS;
+use super::cdr::CdrWriter;
+use super::topics::{BASE_FRAME, IMU_FRAME, LIDAR_FRAME, MAP_FRAME, ODOM_FRAME};
+
+/// `sensor_msgs/PointField` datatypes.
+pub(crate) const UINT16: u8 = 4;
+pub(crate) const FLOAT32: u8 = 7;
+
+/// The point layout of `/points`: name, byte offset, datatype (count 1 each); two bytes of
+/// padding after `ring` keep `time` aligned.
+pub(crate) const POINT_FIELDS: [(&str, u32, u8); 6] = [
+    ("x", 0, FLOAT32),
+    ("y", 4, FLOAT32),
+    ("z", 8, FLOAT32),
+    ("intensity", 12, FLOAT32),
+    ("ring", 16, UINT16),
+    ("time", 20, FLOAT32),
+];
+pub(crate) const POINT_STEP: usize = 24;
+
+/// `std_msgs/Header` with the stamp offset by [`EPOCH_NS`].
+fn header(w: &mut CdrWriter, stamp_ns: i64, frame_id: &str) {
+    let t = stamp_ns + EPOCH_NS;
+    w.i32(t.div_euclid(1_000_000_000) as i32);
+    w.u32(t.rem_euclid(1_000_000_000) as u32);
+    w.string(frame_id);
+}
+
+fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
+    w.f64(v.x);
+    w.f64(v.y);
+    w.f64(v.z);
+}
+
+/// `geometry_msgs/Pose` or `Transform`: translation, then the quaternion as (x, y, z, w).
+fn pose(w: &mut CdrWriter, iso: &Isometry3<f64>) {
+    vector3(w, &iso.translation.vector);
+    let q = iso.rotation.coords; // (i, j, k, w)
+    for v in [q.x, q.y, q.z, q.w] {
+        w.f64(v);
+    }
+}
+
+fn zeros(w: &mut CdrWriter, n: usize) {
+    for _ in 0..n {
+        w.f64(0.0);
+    }
+}
+
+pub(crate) fn imu(m: &ImuSample) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(360);
+    header(&mut w, m.stamp_ns, IMU_FRAME);
+    pose_orientation_unknown(&mut w);
+    vector3(&mut w, &m.gyro_rps);
+    zeros(&mut w, 9);
+    vector3(&mut w, &m.accel_mps2);
+    zeros(&mut w, 9);
+    w.finish()
+}
+
+/// An identity orientation with `covariance[0] = -1`: "no orientation estimate" (REP 145).
+fn pose_orientation_unknown(w: &mut CdrWriter) {
+    for v in [0.0, 0.0, 0.0, 1.0] {
+        w.f64(v);
+    }
+    w.f64(-1.0);
+    zeros(w, 8);
+}
+
+pub(crate) fn point_cloud(m: &LidarScan) -> Vec<u8> {
+    let n = m.points.len();
+    let mut w = CdrWriter::with_capacity(n * POINT_STEP + 256);
+    header(&mut w, m.stamp_ns, LIDAR_FRAME);
+    w.u32(1); // height: an unordered cloud
+    w.u32(n as u32);
+    w.seq_len(POINT_FIELDS.len());
+    for (name, offset, datatype) in POINT_FIELDS {
+        w.string(name);
+        w.u32(offset);
+        w.u8(datatype);
+        w.u32(1);
+    }
+    w.bool(false); // is_bigendian
+    w.u32(POINT_STEP as u32);
+    w.u32((n * POINT_STEP) as u32);
+    let mut data = Vec::with_capacity(n * POINT_STEP);
+    for p in &m.points {
+        for v in [p.x, p.y, p.z, p.intensity] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+        data.extend_from_slice(&p.ring.to_le_bytes());
+        data.extend_from_slice(&[0, 0]);
+        data.extend_from_slice(&p.time_s.to_le_bytes());
+    }
+    w.bytes(&data);
+    w.bool(true); // is_dense: the simulator emits returns only, no NaN points
+    w.finish()
+}
+
+pub(crate) fn laser_scan(m: &LaserScan, frame_id: &str, scan_time_s: f32) -> Vec<u8> {
+    let n = m.ranges_m.len();
+    let mut w = CdrWriter::with_capacity(8 * n + 128);
+    header(&mut w, m.stamp_ns, frame_id);
+    let angle_max = m.angle_min_rad + m.angle_increment_rad * n.saturating_sub(1) as f32;
+    for v in [
+        m.angle_min_rad,
+        angle_max,
+        m.angle_increment_rad,
+        m.time_increment_s,
+        scan_time_s,
+        m.range_min_m,
+        m.range_max_m,
+    ] {
+        w.f32(v);
+    }
+    w.f32_seq(&m.ranges_m);
+    w.f32_seq(&m.intensities);
+    w.finish()
+}
+
+pub(crate) fn odometry(m: &WheelOdometry) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(720);
+    header(&mut w, m.stamp_ns, ODOM_FRAME);
+    w.string(BASE_FRAME);
+    pose(&mut w, &m.odom_from_base);
+    zeros(&mut w, 36);
+    vector3(&mut w, &Vector3::new(m.linear_mps, 0.0, 0.0));
+    vector3(&mut w, &Vector3::new(0.0, 0.0, m.angular_rps));
+    zeros(&mut w, 36);
+    w.finish()
+}
+
+pub(crate) fn pose_stamped(m: &GroundTruth) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(80);
+    header(&mut w, m.stamp_ns, MAP_FRAME);
+    pose(&mut w, &m.world_from_base);
+    w.finish()
+}
+
+pub(crate) fn twist_stamped(m: &GroundTruth) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(80);
+    header(&mut w, m.stamp_ns, MAP_FRAME);
+    vector3(&mut w, &m.velocity_in_world);
+    vector3(&mut w, &m.omega_in_base);
+    w.finish()
+}
+
+/// `tf2_msgs/TFMessage` of `base_link → frame` transforms (`base_from_sensor`), at `stamp_ns`.
+pub(crate) fn tf_message(stamp_ns: i64, transforms: &[(&str, Isometry3<f64>)]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(128 * transforms.len());
+    w.seq_len(transforms.len());
+    for (child, base_from_sensor) in transforms {
+        header(&mut w, stamp_ns, BASE_FRAME);
+        w.string(child);
+        pose(&mut w, base_from_sensor);
+    }
+    w.finish()
+}

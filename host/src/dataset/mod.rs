@@ -1,0 +1,46 @@
+//! Recorded datasets: the simulator's stream as an MCAP file of ROS 2 messages, and back.
+//!
+//! [`Recorder`] writes what [`sim::Simulation::stream`] yields as an MCAP file (MCAP format
+//! specification, <https://mcap.dev/spec>) with the ROS 2 profile: `ros2msg` schemas and
+//! `cdr` message encoding (little-endian OMG CDR as the ROS 2 middleware serializes it, see
+//! [`cdr`]), so `ros2 bag play FILE.mcap` and Foxglove open it. [`Replay`] reads such a file
+//! back into the very same [`Message`] values, bit for bit and in the same order, so a plugin
+//! can be fed from a file instead of the live simulator ([`replay_messages`]).
+//!
+//! | topic | type | frame | from |
+//! |---|---|---|---|
+//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | `base_link` → `imu_link`, `velodyne`, `laser_front`, `laser_back` | the mounts' `base_from_sensor`, once at t = 0 |
+//! | `/imu` | `sensor_msgs/msg/Imu` | `imu_link` | [`sim::sensors::ImuSample`]; no orientation (`orientation_covariance[0] = -1`) |
+//! | `/points` | `sensor_msgs/msg/PointCloud2` | `velodyne` | [`sim::sensors::LidarScan`]: x, y, z, intensity (f32), ring (u16), time (f32, s after the stamp), as LIO-SAM reads them |
+//! | `/scan_front`, `/scan_back` | `sensor_msgs/msg/LaserScan` | `laser_front`, `laser_back` | [`sim::sensors::LaserScan`] |
+//! | `/odom` | `nav_msgs/msg/Odometry` | `odom` → `base_link` | [`sim::sensors::WheelOdometry`]: pose `odom_from_base`, twist linear.x and angular.z |
+//! | `/ground_truth` | `geometry_msgs/msg/PoseStamped` | `map` | [`sim::sensors::GroundTruth`]: `world_from_base` |
+//! | `/ground_truth/twist` | `geometry_msgs/msg/TwistStamped` | `map` | the same ground truth's `velocity_in_world` (linear, in `map`) and `omega_in_base` (angular, in `base_link`, as the simulator keeps it) |
+//!
+//! Frames follow REP 105 (`map` → `odom` → `base_link`) and REP 103 (x forward, y left, z up).
+//!
+//! Time: every header stamp is the measurement's stamp (a sweep's start) and every MCAP
+//! `log_time` / `publish_time` the moment the message becomes available (a sweep's end,
+//! everything else its stamp), both offset by [`EPOCH_NS`] so that simulated time 0 is
+//! 2023-11-14T22:13:20Z and no stamp is ROS's "zero time". The file holds no wall-clock time
+//! and no compression, so the same configuration and seed give byte-identical files.
+
+mod cdr;
+mod decode;
+mod encode;
+mod error;
+mod recorder;
+mod replay;
+mod schemas;
+mod topics;
+
+pub use error::DatasetError;
+pub use recorder::Recorder;
+pub use replay::{Replay, replay_messages};
+pub use topics::Topic;
+
+/// Simulated time 0 in the file's ROS time: 1.7e9 s after the Unix epoch, in nanoseconds.
+pub const EPOCH_NS: i64 = 1_700_000_000_000_000_000;
+
+#[cfg(doc)]
+use sim::sensors::Message;

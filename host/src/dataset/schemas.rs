@@ -1,0 +1,188 @@
+//! ROS 2 message definitions for the MCAP `ros2msg` schema encoding.
+//!
+//! A schema's data is the `.msg` text of the type followed by every type it depends on, each
+//! introduced by a line of 80 `=` and a `MSG: pkg/Name` line (the format rosbag2 writes and
+//! Foxglove and `mcap-ros2-support` parse; MCAP spec, "Well-known schema encodings":
+//! <https://mcap.dev/spec/registry#ros2msg>). The texts are those of ROS 2 Humble's
+//! `common_interfaces` and `rcl_interfaces` with the comments left out.
+
+/// Each type with its definition and the types it uses directly.
+const DEFINITIONS: &[(&str, &str, &[&str])] = &[
+    (
+        "builtin_interfaces/Time",
+        "int32 sec\nuint32 nanosec\n",
+        &[],
+    ),
+    (
+        "std_msgs/Header",
+        "builtin_interfaces/Time stamp\nstring frame_id\n",
+        &["builtin_interfaces/Time"],
+    ),
+    (
+        "geometry_msgs/Vector3",
+        "float64 x\nfloat64 y\nfloat64 z\n",
+        &[],
+    ),
+    (
+        "geometry_msgs/Point",
+        "float64 x\nfloat64 y\nfloat64 z\n",
+        &[],
+    ),
+    (
+        "geometry_msgs/Quaternion",
+        "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
+        &[],
+    ),
+    (
+        "geometry_msgs/Pose",
+        "Point position\nQuaternion orientation\n",
+        &["geometry_msgs/Point", "geometry_msgs/Quaternion"],
+    ),
+    (
+        "geometry_msgs/PoseStamped",
+        "std_msgs/Header header\nPose pose\n",
+        &["std_msgs/Header", "geometry_msgs/Pose"],
+    ),
+    (
+        "geometry_msgs/PoseWithCovariance",
+        "Pose pose\nfloat64[36] covariance\n",
+        &["geometry_msgs/Pose"],
+    ),
+    (
+        "geometry_msgs/Twist",
+        "Vector3 linear\nVector3 angular\n",
+        &["geometry_msgs/Vector3"],
+    ),
+    (
+        "geometry_msgs/TwistWithCovariance",
+        "Twist twist\nfloat64[36] covariance\n",
+        &["geometry_msgs/Twist"],
+    ),
+    (
+        "geometry_msgs/TwistStamped",
+        "std_msgs/Header header\nTwist twist\n",
+        &["std_msgs/Header", "geometry_msgs/Twist"],
+    ),
+    (
+        "geometry_msgs/Transform",
+        "Vector3 translation\nQuaternion rotation\n",
+        &["geometry_msgs/Vector3", "geometry_msgs/Quaternion"],
+    ),
+    (
+        "geometry_msgs/TransformStamped",
+        "std_msgs/Header header\nstring child_frame_id\nTransform transform\n",
+        &["std_msgs/Header", "geometry_msgs/Transform"],
+    ),
+    (
+        "sensor_msgs/Imu",
+        "std_msgs/Header header\n\
+         geometry_msgs/Quaternion orientation\n\
+         float64[9] orientation_covariance\n\
+         geometry_msgs/Vector3 angular_velocity\n\
+         float64[9] angular_velocity_covariance\n\
+         geometry_msgs/Vector3 linear_acceleration\n\
+         float64[9] linear_acceleration_covariance\n",
+        &[
+            "std_msgs/Header",
+            "geometry_msgs/Quaternion",
+            "geometry_msgs/Vector3",
+        ],
+    ),
+    (
+        "sensor_msgs/PointField",
+        "uint8 INT8    = 1\nuint8 UINT8   = 2\nuint8 INT16   = 3\nuint8 UINT16  = 4\n\
+         uint8 INT32   = 5\nuint8 UINT32  = 6\nuint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n\
+         string name\nuint32 offset\nuint8  datatype\nuint32 count\n",
+        &[],
+    ),
+    (
+        "sensor_msgs/PointCloud2",
+        "std_msgs/Header header\n\
+         uint32 height\nuint32 width\n\
+         PointField[] fields\n\
+         bool    is_bigendian\nuint32  point_step\nuint32  row_step\nuint8[] data\n\
+         bool is_dense\n",
+        &["std_msgs/Header", "sensor_msgs/PointField"],
+    ),
+    (
+        "sensor_msgs/LaserScan",
+        "std_msgs/Header header\n\
+         float32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\n\
+         float32 time_increment\nfloat32 scan_time\n\
+         float32 range_min\nfloat32 range_max\n\
+         float32[] ranges\nfloat32[] intensities\n",
+        &["std_msgs/Header"],
+    ),
+    (
+        "nav_msgs/Odometry",
+        "std_msgs/Header header\nstring child_frame_id\n\
+         geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n",
+        &[
+            "std_msgs/Header",
+            "geometry_msgs/PoseWithCovariance",
+            "geometry_msgs/TwistWithCovariance",
+        ],
+    ),
+    (
+        "tf2_msgs/TFMessage",
+        "geometry_msgs/TransformStamped[] transforms\n",
+        &["geometry_msgs/TransformStamped"],
+    ),
+];
+
+fn find(name: &str) -> (&'static str, &'static [&'static str]) {
+    DEFINITIONS
+        .iter()
+        .find(|(n, _, _)| *n == name)
+        .map(|&(_, text, deps)| (text, deps))
+        .unwrap_or_else(|| panic!("no definition for {name}"))
+}
+
+/// The `ros2msg` schema data of `name` (`pkg/msg/Name` or `pkg/Name`): its definition, then
+/// each dependency once, depth first.
+pub(crate) fn schema(name: &str) -> String {
+    let short = name.replace("/msg/", "/");
+    let (text, deps) = find(&short);
+    let mut out = text.to_owned();
+    let mut seen = vec![short];
+    let mut stack: Vec<&str> = deps.iter().rev().copied().collect();
+    while let Some(dep) = stack.pop() {
+        if seen.iter().any(|s| s == dep) {
+            continue;
+        }
+        seen.push(dep.to_owned());
+        let (text, deps) = find(dep);
+        out.push_str(&"=".repeat(80));
+        out.push_str(&format!("\nMSG: {dep}\n{text}"));
+        stack.extend(deps.iter().rev());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::schema;
+
+    #[test]
+    fn a_schema_carries_every_dependency_once() {
+        let s = schema("nav_msgs/msg/Odometry");
+        for dep in [
+            "std_msgs/Header",
+            "builtin_interfaces/Time",
+            "geometry_msgs/PoseWithCovariance",
+            "geometry_msgs/Pose",
+            "geometry_msgs/Point",
+            "geometry_msgs/Quaternion",
+            "geometry_msgs/TwistWithCovariance",
+            "geometry_msgs/Twist",
+            "geometry_msgs/Vector3",
+        ] {
+            assert_eq!(
+                s.matches(&format!("\nMSG: {dep}\n")).count(),
+                1,
+                "{dep} once in\n{s}"
+            );
+        }
+        assert!(s.starts_with("std_msgs/Header header\n"), "{s}");
+    }
+}

@@ -1,0 +1,79 @@
+//! The recording's topics, their ROS 2 types and frame names (REP 105).
+
+/// Frame of the IMU (`sensor_msgs/Imu` header).
+pub const IMU_FRAME: &str = "imu_link";
+/// Frame of the 3D lidar, named as the Velodyne ROS driver names it.
+pub const LIDAR_FRAME: &str = "velodyne";
+pub const LASER_FRONT_FRAME: &str = "laser_front";
+pub const LASER_BACK_FRAME: &str = "laser_back";
+pub const BASE_FRAME: &str = "base_link";
+pub const ODOM_FRAME: &str = "odom";
+pub const MAP_FRAME: &str = "map";
+
+/// A topic of a recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Topic {
+    TfStatic,
+    GroundTruth,
+    GroundTruthTwist,
+    Imu,
+    Odom,
+    ScanFront,
+    ScanBack,
+    Points,
+}
+
+impl Topic {
+    pub const ALL: [Topic; 8] = [
+        Topic::TfStatic,
+        Topic::GroundTruth,
+        Topic::GroundTruthTwist,
+        Topic::Imu,
+        Topic::Odom,
+        Topic::ScanFront,
+        Topic::ScanBack,
+        Topic::Points,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Topic::TfStatic => "/tf_static",
+            Topic::GroundTruth => "/ground_truth",
+            Topic::GroundTruthTwist => "/ground_truth/twist",
+            Topic::Imu => "/imu",
+            Topic::Odom => "/odom",
+            Topic::ScanFront => "/scan_front",
+            Topic::ScanBack => "/scan_back",
+            Topic::Points => "/points",
+        }
+    }
+
+    /// The ROS 2 type, as rosbag2 names it in a schema.
+    pub fn schema(self) -> &'static str {
+        match self {
+            Topic::TfStatic => "tf2_msgs/msg/TFMessage",
+            Topic::GroundTruth => "geometry_msgs/msg/PoseStamped",
+            Topic::GroundTruthTwist => "geometry_msgs/msg/TwistStamped",
+            Topic::Imu => "sensor_msgs/msg/Imu",
+            Topic::Odom => "nav_msgs/msg/Odometry",
+            Topic::ScanFront | Topic::ScanBack => "sensor_msgs/msg/LaserScan",
+            Topic::Points => "sensor_msgs/msg/PointCloud2",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Topic> {
+        Topic::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// Whether a stream of `sensors` carries this topic (`/tf_static` always).
+    pub fn in_set(self, sensors: &sim::SensorSet) -> bool {
+        match self {
+            Topic::TfStatic => true,
+            Topic::GroundTruth | Topic::GroundTruthTwist => sensors.ground_truth,
+            Topic::Imu => sensors.imu,
+            Topic::Odom => sensors.wheel_odometry,
+            Topic::ScanFront | Topic::ScanBack => sensors.scan2d,
+            Topic::Points => sensors.lidar,
+        }
+    }
+}
