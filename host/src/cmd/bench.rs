@@ -73,6 +73,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         timeout: Duration::from_secs_f64(cfg.timeout_s),
         memory_limit_mb: cfg.memory_limit_mb,
         alignment: cfg.align.into(),
+        dataset: None,
     };
     report(&plan).map(drop)
 }

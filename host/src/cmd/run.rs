@@ -34,6 +34,10 @@ pub struct RunArgs {
     /// Alignment before APE: none, origin, se3, sim3, 4dof.
     #[arg(long, default_value = "se3")]
     pub align: String,
+    /// Feed the plugin from this recording (`vinebench record`, same world and scenario)
+    /// instead of the live simulator.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub dataset: Option<PathBuf>,
     /// More directories to search for plugins.
     #[arg(long = "plugin-dir")]
     pub plugin_dirs: Vec<PathBuf>,
@@ -79,6 +83,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         timeout: Duration::from_secs_f64(args.timeout_s),
         memory_limit_mb: args.memory_limit_mb,
         alignment: align.into(),
+        dataset: args.dataset.clone(),
     };
     let executed = crate::cmd::bench::report(&plan)?;
     // One run: its failure is the command's failure (the results folder is still written).

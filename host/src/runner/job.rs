@@ -19,6 +19,10 @@ pub struct Job {
     pub out_dir: PathBuf,
     /// Address-space limit the worker sets on itself before loading the plugin.
     pub memory_limit_mb: u64,
+    /// Feed the plugin from this recording (`vinebench record`) instead of the live
+    /// simulator; the scenario and world still give the rig and the nominal duration.
+    #[serde(default)]
+    pub dataset: Option<PathBuf>,
 }
 
 /// File names inside a run folder.

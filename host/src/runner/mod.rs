@@ -47,6 +47,8 @@ pub struct Plan {
     pub timeout: Duration,
     pub memory_limit_mb: u64,
     pub alignment: eval::Alignment,
+    /// Feed every run from this recording instead of the live simulator.
+    pub dataset: Option<PathBuf>,
 }
 
 /// What came out of a whole matrix.
@@ -168,6 +170,7 @@ fn run_all(
             params_toml: run.params_toml.clone(),
             out_dir: std::path::absolute(&dir)?,
             memory_limit_mb: plan.memory_limit_mb,
+            dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
         };
         worker::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));

@@ -64,11 +64,15 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let mut points = Vec::new();
     let mut next_progress = 0;
     let mut stdout = std::io::stdout().lock();
+    // Replay is checked whole before anything is fed, so a bad file fails the run cleanly.
+    let source: Box<dyn Iterator<Item = Message> + Send + '_> = match &job.dataset {
+        Some(path) => Box::new(crate::dataset::replay_messages(path, sensors)?),
+        None => Box::new(sim.stream(sensors)),
+    };
     std::thread::scope(|scope| -> anyhow::Result<()> {
         let (tx, rx) = sync_channel(AHEAD);
-        let sim = &sim;
         let producer = scope.spawn(move || {
-            for message in sim.stream(sensors) {
+            for message in source {
                 if tx.send(message).is_err() {
                     break;
                 }
