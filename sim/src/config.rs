@@ -108,6 +108,27 @@ impl SimConfig {
                 ));
             }
         }
+        let c = &s.camera;
+        positive("sensors.camera.rate_hz", c.rate_hz)?;
+        if c.width < 2 || c.height < 2 {
+            return Err("sensors.camera: width and height must be at least 2".into());
+        }
+        in_range("sensors.camera.hfov_deg", c.hfov_deg, 1.0, 170.0)?;
+        positive("sensors.camera.min_depth_m", c.min_depth_m)?;
+        if c.max_depth_m <= c.min_depth_m {
+            return Err(format!(
+                "sensors.camera.max_depth_m = {}: must exceed min_depth_m = {}",
+                c.max_depth_m, c.min_depth_m
+            ));
+        }
+        non_negative("sensors.camera.rgb_sigma", c.rgb_sigma)?;
+        non_negative("sensors.camera.edge_dropout_ratio", c.edge_dropout_ratio)?;
+        in_range(
+            "sensors.camera.sun_elevation_deg",
+            c.sun_elevation_deg,
+            1.0,
+            90.0,
+        )?;
         for (name, route) in &self.scenarios {
             route
                 .validate()
@@ -336,6 +357,7 @@ pub struct SensorsConfig {
     pub lidar: LidarConfig,
     pub scan2d_front: Scan2dConfig,
     pub scan2d_back: Scan2dConfig,
+    pub camera: CameraConfig,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -482,6 +504,60 @@ impl Default for Scan2dConfig {
             max_range_m: 30.0,
             noise: NoiseProfile::Typical,
             range_sigma_m: 0.01,
+        }
+    }
+}
+
+/// An RGB-D camera (defaults: a Kinect v2 with its depth registered to a 640x480 colour
+/// image, as the paper's simulated camera). See [`crate::camera`] for the frames and the
+/// noise model.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraConfig {
+    pub rate_hz: f64,
+    /// `base_from_camera` of the camera body: x forward, y left, z up (like every other
+    /// sensor). The image's optical frame (z forward, x right, y down) is rotated from it;
+    /// see [`crate::camera::RgbdCamera::base_from_camera_optical`].
+    pub mount: Mount,
+    pub width: usize,
+    pub height: usize,
+    /// Horizontal field of view of the pinhole; square pixels, principal point at the centre.
+    pub hfov_deg: f64,
+    /// Returns nearer than this are invalid (0).
+    pub min_depth_m: f64,
+    /// Returns farther than this are invalid (0).
+    pub max_depth_m: f64,
+    /// `typical`: axial depth noise after Fankhauser et al. 2015, edge dropout, colour noise;
+    /// `none`: exact depth and colour (the paper's Gazebo camera).
+    pub noise: NoiseProfile,
+    /// σ of the zero-mean noise on each colour channel, in 8-bit levels.
+    pub rgb_sigma: f64,
+    /// A pixel whose depth differs from a 4-neighbour's by more than this fraction of its
+    /// own depth is invalidated (time-of-flight "flying pixels"); 0 disables.
+    pub edge_dropout_ratio: f64,
+    /// Sun direction: elevation above the horizon and azimuth counter-clockwise from world x.
+    pub sun_elevation_deg: f64,
+    pub sun_azimuth_deg: f64,
+    /// Cast shadows from the sun (a shadow map of the vine block, built once).
+    pub shadows: bool,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 30.0,
+            mount: Mount::at(0.5, 0.0, 0.66),
+            width: 640,
+            height: 480,
+            hfov_deg: 70.0,
+            min_depth_m: 0.5,
+            max_depth_m: 8.0,
+            noise: NoiseProfile::Typical,
+            rgb_sigma: 2.0,
+            edge_dropout_ratio: 0.05,
+            sun_elevation_deg: 50.0,
+            sun_azimuth_deg: 30.0,
+            shadows: true,
         }
     }
 }

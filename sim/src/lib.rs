@@ -10,6 +10,7 @@
 //! }
 //! ```
 
+pub mod camera;
 pub mod config;
 mod error;
 pub mod raycast;

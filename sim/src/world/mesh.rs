@@ -56,11 +56,18 @@ impl Material {
 }
 
 /// An indexed triangle mesh in the world frame (metres, z up), one material per triangle.
+///
+/// `tex[i]` is vertex `i`'s position in texture space, which the camera's procedural
+/// materials are evaluated in: the world position for the ground, the position relative to
+/// the plant's trunk foot (or the post's foot) for vines and posts. So clones of a plant
+/// carry identical texture coordinates wherever they stand and look identical on camera.
 #[derive(Debug, Clone, Default)]
 pub struct Mesh {
     pub vertices: Vec<Point3<f32>>,
     pub triangles: Vec<[u32; 3]>,
     pub materials: Vec<Material>,
+    /// Texture-space position of every vertex (same length as `vertices`).
+    pub tex: Vec<[f32; 3]>,
 }
 
 impl Mesh {
@@ -72,10 +79,16 @@ impl Mesh {
         self.triangles.len()
     }
 
-    /// Adds a vertex and returns its index.
+    /// Adds a vertex whose texture-space position is its own position, and returns its index.
     pub fn push_vertex(&mut self, p: Point3<f32>) -> u32 {
+        self.push_vertex_tex(p, [p.x, p.y, p.z])
+    }
+
+    /// Adds a vertex with an explicit texture-space position and returns its index.
+    pub fn push_vertex_tex(&mut self, p: Point3<f32>, tex: [f32; 3]) -> u32 {
         let i = u32::try_from(self.vertices.len()).expect("mesh exceeds u32 vertices");
         self.vertices.push(p);
+        self.tex.push(tex);
         i
     }
 
@@ -88,6 +101,7 @@ impl Mesh {
     pub fn append(&mut self, other: &Mesh) {
         let base = u32::try_from(self.vertices.len()).expect("mesh exceeds u32 vertices");
         self.vertices.extend_from_slice(&other.vertices);
+        self.tex.extend_from_slice(&other.tex);
         self.triangles.extend(
             other
                 .triangles

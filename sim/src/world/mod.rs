@@ -142,6 +142,7 @@ impl World {
             let base = Point3::new(x, y, terrain.height(x, y));
             let offset: Vector3<f32> = base.coords.cast();
             let start = mesh.triangle_count();
+            // Moved into place; texture coordinates stay plant-local (see `Mesh::tex`).
             let mut placed = local.clone();
             placed.vertices.iter_mut().for_each(|p| *p += offset);
             mesh.append(&placed);

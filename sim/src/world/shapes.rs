@@ -109,17 +109,20 @@ pub fn bunch(mesh: &mut Mesh, top: Point3<f32>, length: f32, width: f32) {
 }
 
 /// An axis-aligned box post standing on `base`, `width` square and `height` tall, with a top.
+/// Its texture coordinates are relative to `base`, so all posts share one look.
 pub fn post(mesh: &mut Mesh, base: Point3<f32>, width: f32, height: f32) {
     // A square tube is a 4-sided tube rotated by 45° so its faces align with the axes.
     let h = 0.5 * width;
     let corners = [(-h, -h), (h, -h), (h, h), (-h, h)];
     let bottom: Vec<u32> = corners
         .iter()
-        .map(|&(dx, dy)| mesh.push_vertex(base + Vector3::new(dx, dy, -0.1)))
+        .map(|&(dx, dy)| mesh.push_vertex_tex(base + Vector3::new(dx, dy, -0.1), [dx, dy, -0.1]))
         .collect();
     let top: Vec<u32> = corners
         .iter()
-        .map(|&(dx, dy)| mesh.push_vertex(base + Vector3::new(dx, dy, height)))
+        .map(|&(dx, dy)| {
+            mesh.push_vertex_tex(base + Vector3::new(dx, dy, height), [dx, dy, height])
+        })
         .collect();
     for s in 0..4 {
         let t = (s + 1) % 4;

@@ -1,0 +1,55 @@
+//! RGB-D camera throughput: frames/s of colour + registered depth (640x480, noise and
+//! shadows on) from a pose in a lane of the default world (growth stage 3), all cores.
+//! Run: `cargo bench -p vinebench-sim --bench camera`.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use sim::camera::RgbdCamera;
+use sim::config::SimConfig;
+use sim::rng::stream;
+use sim::world::World;
+
+fn benches(c: &mut Criterion) {
+    let cfg = SimConfig::default();
+    let world = World::build(&cfg.vineyard, &cfg.terrain, cfg.world_seed);
+    let started = Instant::now();
+    let camera = RgbdCamera::new(&cfg.sensors.camera, &world);
+    eprintln!(
+        "scene: {} triangles; camera set up (chunks + shadow map) in {:.0} ms",
+        world.mesh.triangle_count(),
+        started.elapsed().as_secs_f64() * 1e3
+    );
+    let (x, y) = (4.0, cfg.vineyard.lane_y(3));
+    let base = Isometry3::from_parts(
+        Translation3::new(x, y, world.terrain.height(x, y)),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.05),
+    );
+    let mut rng = stream(1, "camera");
+
+    // A plain timing first, so the figure is printed whatever criterion's output settings.
+    let frames = 60;
+    let started = Instant::now();
+    for _ in 0..frames {
+        black_box(camera.render(&base, &mut rng));
+    }
+    let fps = frames as f64 / started.elapsed().as_secs_f64();
+    eprintln!(
+        "rgbd 640x480: {fps:.1} frames/s ({:.2} ms/frame) on {} threads",
+        1e3 / fps,
+        rayon::current_num_threads()
+    );
+
+    let mut group = c.benchmark_group("camera");
+    group.throughput(Throughput::Elements(1));
+    group.sample_size(30);
+    group.bench_function("rgbd_frame_lane_stage3", |b| {
+        b.iter(|| black_box(camera.render(&base, &mut rng)))
+    });
+    group.finish();
+}
+
+criterion_group!(camera, benches);
+criterion_main!(camera);

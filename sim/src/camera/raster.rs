@@ -1,0 +1,325 @@
+//! Projection and z-buffered scan conversion into a visibility buffer.
+//!
+//! A projected triangle carries a plane `q(x, y)` that is affine in screen space: `1 / z`
+//! for the perspective camera (Heckbert & Moreton 1991), the height towards the sun for the
+//! orthographic shadow map. Both keep the largest `q` (the nearest surface); equal `q` go to
+//! the smaller triangle index, so the result never depends on drawing order.
+
+use std::ops::Range;
+
+use nalgebra::Isometry3;
+use rayon::prelude::*;
+
+use super::chunks::Chunks;
+use super::intrinsics::Intrinsics;
+
+/// Near clipping plane of the renderer (the depth image's own limit is applied later).
+pub(crate) const NEAR_M: f32 = 0.05;
+
+/// Widening of every edge, in pixels: shared edges computed with different rounding never
+/// leave a crack.
+const EDGE_EPS: f32 = 1e-4;
+
+/// A camera pose and pinhole, prepared for projecting world points (f32).
+#[derive(Debug, Clone)]
+pub(crate) struct View {
+    /// Optical centre in the world frame.
+    pub origin: [f32; 3],
+    /// Rows of `optical_from_world`'s rotation = columns of `world_from_optical`'s: the
+    /// optical x, y, z axes in the world frame.
+    pub axes: [[f32; 3]; 3],
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: usize,
+    pub height: usize,
+    /// Frustum planes in the world frame: inside when `n · p + d >= 0`.
+    planes: [([f32; 3], f32); 5],
+}
+
+pub(crate) fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+pub(crate) fn sub(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+impl View {
+    pub fn new(world_from_optical: &Isometry3<f64>, k: &Intrinsics) -> Self {
+        let r = world_from_optical.rotation.to_rotation_matrix();
+        let m = r.matrix();
+        let axes = [0, 1, 2].map(|c| [m[(0, c)] as f32, m[(1, c)] as f32, m[(2, c)] as f32]);
+        let t = world_from_optical.translation.vector;
+        let origin = [t.x as f32, t.y as f32, t.z as f32];
+        // Side planes through the outer pixel edges, as normals in the optical frame.
+        let left = ((k.cx + 0.5) / k.fx) as f32;
+        let right = ((k.width as f64 - 0.5 - k.cx) / k.fx) as f32;
+        let top = ((k.cy + 0.5) / k.fy) as f32;
+        let bottom = ((k.height as f64 - 0.5 - k.cy) / k.fy) as f32;
+        let to_world = |n: [f32; 3]| -> [f32; 3] {
+            [0, 1, 2].map(|d| axes[0][d] * n[0] + axes[1][d] * n[1] + axes[2][d] * n[2])
+        };
+        let plane = |n_opt: [f32; 3], offset: f32| {
+            let n = to_world(n_opt);
+            (n, -dot(&n, &origin) - offset)
+        };
+        let planes = [
+            plane([0.0, 0.0, 1.0], NEAR_M),
+            plane([1.0, 0.0, left], 0.0),
+            plane([-1.0, 0.0, right], 0.0),
+            plane([0.0, 1.0, top], 0.0),
+            plane([0.0, -1.0, bottom], 0.0),
+        ];
+        Self {
+            origin,
+            axes,
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            width: k.width,
+            height: k.height,
+            planes,
+        }
+    }
+
+    /// Whether an axis-aligned box may meet the frustum (conservative).
+    pub fn box_visible(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
+        self.planes.iter().all(|(n, d)| {
+            let p = [0, 1, 2].map(|k| if n[k] >= 0.0 { hi[k] } else { lo[k] });
+            dot(n, &p) + d >= 0.0
+        })
+    }
+
+    /// A world point in the optical frame.
+    pub fn to_optical(&self, p: &[f32; 3]) -> [f32; 3] {
+        let r = sub(p, &self.origin);
+        [
+            dot(&self.axes[0], &r),
+            dot(&self.axes[1], &r),
+            dot(&self.axes[2], &r),
+        ]
+    }
+
+    /// Direction of the ray through pixel (u, v) in the world frame, scaled so that its
+    /// optical z component is 1.
+    pub fn ray(&self, u: f32, v: f32) -> [f32; 3] {
+        let x = (u - self.cx) / self.fx;
+        let y = (v - self.cy) / self.fy;
+        [0, 1, 2].map(|d| self.axes[0][d] * x + self.axes[1][d] * y + self.axes[2][d])
+    }
+}
+
+/// Floor and ceiling to i32 without a libm call (baseline x86-64 lacks SSE4.1 `roundps`);
+/// the span bounds are clamped to the raster before, so they fit.
+fn floor_i(x: f32) -> i32 {
+    let i = x as i32;
+    if (i as f32) > x { i - 1 } else { i }
+}
+
+fn ceil_i(x: f32) -> i32 {
+    let i = x as i32;
+    if (i as f32) < x { i + 1 } else { i }
+}
+
+/// A triangle in screen space, ready for scan conversion.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ScreenTri {
+    x: [f32; 3],
+    y: [f32; 3],
+    /// `q = q0 + qx (x - x0) + qy (y - y0)`.
+    q0: f32,
+    qx: f32,
+    qy: f32,
+    /// +1 or -1: makes the edge functions positive inside.
+    sign: f32,
+    pub id: u32,
+    x_lo: i32,
+    x_hi: i32,
+    pub y_lo: i32,
+    pub y_hi: i32,
+}
+
+impl ScreenTri {
+    /// `None` when the triangle is degenerate or covers no pixel centre of a
+    /// `width x height` raster.
+    pub fn new(
+        x: [f32; 3],
+        y: [f32; 3],
+        q: [f32; 3],
+        id: u32,
+        width: usize,
+        height: usize,
+    ) -> Option<Self> {
+        let (dx1, dy1) = (x[1] - x[0], y[1] - y[0]);
+        let (dx2, dy2) = (x[2] - x[0], y[2] - y[0]);
+        let area2 = dx1 * dy2 - dx2 * dy1;
+        if area2.abs() < 1e-12 || !area2.is_finite() {
+            return None;
+        }
+        let min = |a: [f32; 3]| a[0].min(a[1]).min(a[2]);
+        let max = |a: [f32; 3]| a[0].max(a[1]).max(a[2]);
+        let x_lo = ((min(x) - EDGE_EPS).ceil().max(0.0)) as i32;
+        let x_hi = ((max(x) + EDGE_EPS).floor().min(width as f32 - 1.0)) as i32;
+        let y_lo = ((min(y) - EDGE_EPS).ceil().max(0.0)) as i32;
+        let y_hi = ((max(y) + EDGE_EPS).floor().min(height as f32 - 1.0)) as i32;
+        if x_lo > x_hi || y_lo > y_hi {
+            return None;
+        }
+        let (dq1, dq2) = (q[1] - q[0], q[2] - q[0]);
+        Some(Self {
+            x,
+            y,
+            q0: q[0],
+            qx: (dq1 * dy2 - dq2 * dy1) / area2,
+            qy: (dq2 * dx1 - dq1 * dx2) / area2,
+            sign: area2.signum(),
+            id,
+            x_lo,
+            x_hi,
+            y_lo,
+            y_hi,
+        })
+    }
+
+    /// Pixel columns of row `py` inside the triangle.
+    fn span(&self, py: f32) -> Option<(i32, i32)> {
+        let (mut lo, mut hi) = (self.x_lo as f32, self.x_hi as f32);
+        for k in 0..3 {
+            let j = (k + 1) % 3;
+            let (ax, ay) = (self.x[k], self.y[k]);
+            let (dx, dy) = (self.x[j] - ax, self.y[j] - ay);
+            // Inside: sign * (dx (y - ay) - dy (x - ax)) >= 0  <=>  m x <= c.
+            let m = self.sign * dy;
+            let c = self.sign * (dx * (py - ay) + dy * ax);
+            if m > 0.0 {
+                hi = hi.min(c / m + EDGE_EPS);
+            } else if m < 0.0 {
+                lo = lo.max(c / m - EDGE_EPS);
+            } else if c < 0.0 {
+                return None;
+            }
+        }
+        let (a, b) = (ceil_i(lo), floor_i(hi));
+        (a <= b).then_some((a, b))
+    }
+}
+
+/// Moves the visible chunks' triangles to the optical frame, clips them at the near plane
+/// and projects them; the list is in chunk order (deterministic).
+pub(crate) fn project_all(chunks: &Chunks, visible: &[Range<u32>], view: &View) -> Vec<ScreenTri> {
+    let per_chunk: Vec<Vec<ScreenTri>> = visible
+        .par_iter()
+        .map(|range| {
+            let mut out = Vec::with_capacity(range.len());
+            for id in range.clone() {
+                let t = &chunks.tris[id as usize];
+                project(view, t.p.map(|p| view.to_optical(&p)), id, &mut out);
+            }
+            out
+        })
+        .collect();
+    per_chunk.concat()
+}
+
+fn project(view: &View, c: [[f32; 3]; 3], id: u32, out: &mut Vec<ScreenTri>) {
+    let inside = c.map(|p| p[2] >= NEAR_M);
+    let n_in = inside.iter().filter(|&&b| b).count();
+    if n_in == 0 {
+        return;
+    }
+    // Quick reject: all corners beyond one side plane.
+    let (l, r) = (-view.cx / view.fx, (view.width as f32 - view.cx) / view.fx);
+    let (t, b) = (-view.cy / view.fy, (view.height as f32 - view.cy) / view.fy);
+    if c.iter().all(|p| p[0] < l * p[2]) || c.iter().all(|p| p[0] > r * p[2]) {
+        return;
+    }
+    if c.iter().all(|p| p[1] < t * p[2]) || c.iter().all(|p| p[1] > b * p[2]) {
+        return;
+    }
+    let emit = |poly: &[[f32; 3]], out: &mut Vec<ScreenTri>| {
+        let s = poly.iter().map(|p| {
+            let iz = 1.0 / p[2];
+            (
+                view.fx * p[0] * iz + view.cx,
+                view.fy * p[1] * iz + view.cy,
+                iz,
+            )
+        });
+        let s: Vec<(f32, f32, f32)> = s.collect();
+        for k in 1..s.len() - 1 {
+            let v = [s[0], s[k], s[k + 1]];
+            if let Some(tri) = ScreenTri::new(
+                v.map(|p| p.0),
+                v.map(|p| p.1),
+                v.map(|p| p.2),
+                id,
+                view.width,
+                view.height,
+            ) {
+                out.push(tri);
+            }
+        }
+    };
+    if n_in == 3 {
+        emit(&c, out);
+        return;
+    }
+    // Sutherland-Hodgman against z = NEAR.
+    let mut poly: Vec<[f32; 3]> = Vec::with_capacity(4);
+    for k in 0..3 {
+        let (a, b) = (c[k], c[(k + 1) % 3]);
+        if inside[k] {
+            poly.push(a);
+        }
+        if inside[k] != inside[(k + 1) % 3] {
+            let f = (NEAR_M - a[2]) / (b[2] - a[2]);
+            poly.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), NEAR_M]);
+        }
+    }
+    emit(&poly, out);
+}
+
+/// For every band of `band_rows` rows, the indices of the triangles overlapping it.
+pub(crate) fn bin_by_band(tris: &[ScreenTri], height: usize, band_rows: usize) -> Vec<Vec<u32>> {
+    let mut bins = vec![Vec::new(); height.div_ceil(band_rows)];
+    for (i, t) in tris.iter().enumerate() {
+        let bands = (t.y_lo as usize / band_rows)..=(t.y_hi as usize / band_rows);
+        for bin in &mut bins[bands] {
+            bin.push(i as u32);
+        }
+    }
+    bins
+}
+
+/// Draws the listed triangles into one band (rows `first_row..`) of a `width`-wide buffer.
+pub(crate) fn rasterize_band(
+    tris: &[ScreenTri],
+    list: &[u32],
+    first_row: usize,
+    width: usize,
+    q_buf: &mut [f32],
+    id_buf: &mut [u32],
+) {
+    let rows = q_buf.len() / width;
+    let (y0, y1) = (first_row as i32, (first_row + rows) as i32 - 1);
+    for &i in list {
+        let t = &tris[i as usize];
+        for py in t.y_lo.max(y0)..=t.y_hi.min(y1) {
+            let fy = py as f32;
+            let Some((a, b)) = t.span(fy) else { continue };
+            let row = (py - y0) as usize * width;
+            let q_row = t.q0 + t.qy * (fy - t.y[0]);
+            for px in a..=b {
+                let q = q_row + t.qx * (px as f32 - t.x[0]);
+                let k = row + px as usize;
+                if q > q_buf[k] || (q == q_buf[k] && t.id < id_buf[k]) {
+                    q_buf[k] = q;
+                    id_buf[k] = t.id;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! Per-pixel shading of the visibility buffer: exact ray-triangle intersection, material,
+//! Lambert sun with shadows, hemispheric sky ambient, aerial haze, and a sky gradient.
+
+use super::chunks::Chunks;
+use super::raster::{View, dot, sub};
+use super::shadow::ShadowMap;
+use super::texture::{Surface, albedo, tree_line};
+use crate::world::Material;
+
+/// Sun and sky light, linear RGB.
+#[derive(Debug, Clone)]
+pub(crate) struct Light {
+    /// Unit vector towards the sun, world frame.
+    pub sun: [f32; 3],
+    sun_rgb: [f32; 3],
+    sky_rgb: [f32; 3],
+}
+
+impl Light {
+    pub fn new(elevation_deg: f64, azimuth_deg: f64) -> Self {
+        let (e, a) = (elevation_deg.to_radians(), azimuth_deg.to_radians());
+        Self {
+            sun: [
+                (e.cos() * a.cos()) as f32,
+                (e.cos() * a.sin()) as f32,
+                e.sin() as f32,
+            ],
+            sun_rgb: [1.25, 1.20, 1.08],
+            sky_rgb: [0.36, 0.42, 0.52],
+        }
+    }
+}
+
+/// Sky colours (sRGB) at the horizon and the zenith.
+const HORIZON: [f32; 3] = [0.80, 0.85, 0.91];
+const ZENITH: [f32; 3] = [0.33, 0.53, 0.84];
+/// Distance over which haze reaches 63 % (metres).
+const HAZE_M: f32 = 180.0;
+
+/// One pixel's colour (linear RGB), optical-axis depth (0: no surface) and the cosine of
+/// the angle between the ray and the surface normal.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Shaded {
+    pub rgb: [f32; 3],
+    pub depth: f32,
+    pub cos_incidence: f32,
+}
+
+#[derive(Debug)]
+pub(crate) struct Shader<'a> {
+    pub chunks: &'a Chunks,
+    pub view: &'a View,
+    pub light: &'a Light,
+    pub shadow: Option<&'a ShadowMap>,
+}
+
+fn sq(c: [f32; 3]) -> [f32; 3] {
+    c.map(|x| x * x)
+}
+
+fn cross(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+impl Shader<'_> {
+    pub fn shade(&self, u: usize, v: usize, id: u32, inv_z: f32) -> Shaded {
+        let d = self.view.ray(u as f32, v as f32);
+        let len = dot(&d, &d).sqrt();
+        if id == u32::MAX {
+            let unit = d.map(|x| x / len);
+            return Shaded {
+                rgb: tree_line(&unit).map_or_else(
+                    || sky(unit[2]),
+                    |c| {
+                        // Far away: mostly the haze colour.
+                        let t = sq(c);
+                        let h = sq(HORIZON);
+                        [0, 1, 2].map(|k| t[k] + (h[k] - t[k]) * 0.45)
+                    },
+                ),
+                depth: 0.0,
+                cos_incidence: 0.0,
+            };
+        }
+        let tri = &self.chunks.tris[id as usize];
+        let [a, b, c] = tri.p;
+        // Möller-Trumbore without rejection: the rasterizer already chose this triangle;
+        // with `d` scaled to optical z = 1, `t` is the depth.
+        let e1 = sub(&b, &a);
+        let e2 = sub(&c, &a);
+        let p = cross(&d, &e2);
+        let det = dot(&e1, &p);
+        let o = self.view.origin;
+        let (depth, w1, w2) = if det.abs() > 1e-12 {
+            let inv = 1.0 / det;
+            let s = sub(&o, &a);
+            let q = cross(&s, &e1);
+            (dot(&e2, &q) * inv, dot(&s, &p) * inv, dot(&d, &q) * inv)
+        } else {
+            (1.0 / inv_z, 1.0 / 3.0, 1.0 / 3.0)
+        };
+        // Seen edge-on, the plane intersection is unreliable: fall back to the raster depth.
+        let depth = if depth.is_finite() && depth > 0.0 {
+            depth
+        } else {
+            1.0 / inv_z
+        };
+        let w1 = w1.clamp(0.0, 1.0);
+        let w2 = w2.clamp(0.0, 1.0 - w1);
+        let w = [1.0 - w1 - w2, w1, w2];
+        let mut n = cross(&e1, &e2);
+        let nl = dot(&n, &n).sqrt().max(1e-20);
+        n = n.map(|x| x / nl);
+        let facing = dot(&n, &d);
+        let back = facing > 0.0;
+        if back {
+            n = n.map(|x| -x);
+        }
+        let cos_incidence = (facing.abs() / len).min(1.0);
+        let t = [0, 1, 2].map(|k| w[0] * tri.t[0][k] + w[1] * tri.t[1][k] + w[2] * tri.t[2][k]);
+        let surface = Surface {
+            material: tri.material,
+            t,
+            w,
+            corners: tri.t,
+            back,
+            // Geometric mean of the footprint's axes: at grazing angles it is stretched in
+            // one direction only, and blurring both would wash the ground out.
+            footprint: depth * len / (self.view.fx * cos_incidence.max(0.05).sqrt()),
+        };
+        let base = sq(albedo(&surface));
+        let point = [0, 1, 2].map(|k| o[k] + depth * d[k]);
+        let l = &self.light;
+        let mut ndl = dot(&n, &l.sun);
+        if tri.material == Material::Leaf && ndl < 0.0 {
+            // Sunlight through the leaf from behind.
+            ndl *= -0.35;
+        }
+        let sun = if ndl > 0.0 {
+            ndl * self.shadow.map_or(1.0, |s| s.lit(&point))
+        } else {
+            0.0
+        };
+        let sky = 0.6 + 0.4 * n[2];
+        let mut rgb = [0, 1, 2].map(|k| base[k] * (l.sun_rgb[k] * sun + l.sky_rgb[k] * sky));
+        // 1 - exp(-d / HAZE_M) to first order, without a libm call.
+        let range = depth * len;
+        let haze = range / (range + HAZE_M);
+        let horizon = sq(HORIZON);
+        for k in 0..3 {
+            rgb[k] += (horizon[k] - rgb[k]) * haze;
+        }
+        Shaded {
+            rgb,
+            depth,
+            cos_incidence,
+        }
+    }
+}
+
+/// Sky radiance (linear) in a direction of elevation sine `up`.
+fn sky(up: f32) -> [f32; 3] {
+    let f = up.max(0.0).sqrt();
+    let c = [0, 1, 2].map(|k| HORIZON[k] + (ZENITH[k] - HORIZON[k]) * f);
+    sq(c)
+}

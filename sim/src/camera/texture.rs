@@ -1,0 +1,322 @@
+//! Procedural materials: albedo (sRGB, 0..1) of a surface point from its texture-space
+//! position. Value noise on an integer lattice hash (cheap, deterministic, no tables);
+//! patterns sized for a 640x480 camera a metre or a few from the canopy.
+
+use crate::world::Material;
+
+/// What the shader knows about a surface point.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Surface {
+    pub material: Material,
+    /// Texture-space position.
+    pub t: [f32; 3],
+    /// Barycentric weights of the triangle's corners.
+    pub w: [f32; 3],
+    /// The triangle's corners in texture space.
+    pub corners: [[f32; 3]; 3],
+    /// The camera sees the triangle's back face.
+    pub back: bool,
+    /// Size of the pixel's footprint on the surface, metres: detail finer than about two
+    /// footprints is left out (it would only alias).
+    pub footprint: f32,
+}
+
+/// Weight of a noise octave of wavelength `period_m` at pixel footprint `footprint`: 1
+/// when resolved, fading to 0 (the octave's mean) below ~2 pixels per period.
+fn octave(period_m: f32, footprint: f32) -> f32 {
+    ((period_m / footprint - 2.0) * 0.5).clamp(0.0, 1.0)
+}
+
+pub(crate) fn albedo(s: &Surface) -> [f32; 3] {
+    match s.material {
+        Material::Soil => soil(s.t, s.footprint),
+        Material::Grass => grass(s.t, s.footprint),
+        Material::Bark => bark(s.t, s.footprint),
+        Material::Leaf => leaf(s),
+        Material::Grape => grape(s.t),
+        Material::Post => post(s.t),
+        Material::Wire => wire(s.t),
+    }
+}
+
+fn hash(x: i32, y: i32, z: i32, salt: u32) -> f32 {
+    // Lattice hash: odd multipliers per axis, one multiply-xorshift finaliser.
+    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
+        ^ (y as u32).wrapping_mul(0xd816_3841)
+        ^ (z as u32).wrapping_mul(0xcb1a_b31f)
+        ^ salt.wrapping_mul(0x9e37_79b9);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^= h >> 13;
+    (h >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// `x.floor()` without a libm call (baseline x86-64 has no SSE4.1 `roundps`), as f32 and i32.
+fn floor(x: f32) -> (f32, i32) {
+    let i = x as i32;
+    let i = if (i as f32) > x { i - 1 } else { i };
+    (i as f32, i)
+}
+
+/// Fractional part of a non-negative number, without a libm call.
+fn fract(x: f32) -> f32 {
+    x - (x as i32) as f32
+}
+
+fn smooth(f: f32) -> f32 {
+    f * f * (3.0 - 2.0 * f)
+}
+
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
+}
+
+/// 2D value noise in [0, 1) at lattice spacing 1.
+fn noise2(x: f32, y: f32, salt: u32) -> f32 {
+    let ((xf, xi), (yf, yi)) = (floor(x), floor(y));
+    let (fx, fy) = (smooth(x - xf), smooth(y - yf));
+    let a = lerp(hash(xi, yi, 0, salt), hash(xi + 1, yi, 0, salt), fx);
+    let b = lerp(hash(xi, yi + 1, 0, salt), hash(xi + 1, yi + 1, 0, salt), fx);
+    lerp(a, b, fy)
+}
+
+/// 3D value noise in [0, 1) at lattice spacing 1.
+fn noise3(p: [f32; 3], salt: u32) -> f32 {
+    let fl = p.map(floor);
+    let f = fl.map(|c| c.0);
+    let i = fl.map(|c| c.1);
+    let s = [
+        smooth(p[0] - f[0]),
+        smooth(p[1] - f[1]),
+        smooth(p[2] - f[2]),
+    ];
+    let plane = |dz: i32| {
+        let a = lerp(
+            hash(i[0], i[1], i[2] + dz, salt),
+            hash(i[0] + 1, i[1], i[2] + dz, salt),
+            s[0],
+        );
+        let b = lerp(
+            hash(i[0], i[1] + 1, i[2] + dz, salt),
+            hash(i[0] + 1, i[1] + 1, i[2] + dz, salt),
+            s[0],
+        );
+        lerp(a, b, s[1])
+    };
+    lerp(plane(0), plane(1), s[2])
+}
+
+fn scale(c: [f32; 3], k: f32) -> [f32; 3] {
+    c.map(|x| x * k)
+}
+
+fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [
+        lerp(a[0], b[0], t),
+        lerp(a[1], b[1], t),
+        lerp(a[2], b[2], t),
+    ]
+}
+
+/// Tilled soil: brown with low-contrast large patches, fine crumbs, a few clods, scattered
+/// stones and sparse weeds. World space: it differs along a row, but less than the vines
+/// repeat.
+fn soil(t: [f32; 3], footprint: f32) -> [f32; 3] {
+    let (x, y) = (t[0], t[1]);
+    let large = noise2(x * 0.7, y * 0.7, 1);
+    let mut k = 0.88 + 0.16 * large;
+    let w_mid = octave(0.12, footprint);
+    let mid = if w_mid > 0.0 {
+        noise2(x * 8.0, y * 8.0, 2)
+    } else {
+        0.5
+    };
+    k += 0.10 * (mid - 0.5) * w_mid;
+    let w_fine = octave(0.025, footprint);
+    if w_fine > 0.0 {
+        k += 0.24 * (noise2(x * 40.0, y * 40.0, 3) - 0.5) * w_fine;
+    }
+    let w_grain = octave(0.008, footprint);
+    if w_grain > 0.0 {
+        k += 0.14 * (noise2(x * 130.0, y * 130.0, 4) - 0.5) * w_grain;
+    }
+    // Crumbs: small lumps, darker or lighter than the soil around, in about 40 % of the
+    // 1.5 cm cells at random places (a denser or regular layout reads as a grid).
+    if w_fine > 0.0 {
+        let (gx, gy) = (x / 0.015, y / 0.015);
+        let ((fx, ix), (fy, iy)) = (floor(gx), floor(gy));
+        let h = hash(ix, iy, 3, 9);
+        if fract(h * 5.93) < 0.4 {
+            let ox = fract(h * 7.31) * 0.7 + 0.15;
+            let oy = fract(h * 13.17) * 0.7 + 0.15;
+            let r2 = (gx - fx - ox).powi(2) + (gy - fy - oy).powi(2);
+            let r = 0.12 + 0.25 * fract(h * 3.71);
+            if r2 < r * r {
+                let lump = 0.7 + 0.55 * fract(h * 2.39);
+                k *= 1.0 + (lump - 1.0) * w_fine * (1.0 - r2 / (r * r));
+            }
+        }
+    }
+    let mut c = scale([0.50, 0.41, 0.32], k);
+    // Clods: slightly darker, moister lumps where the mid octave peaks; dry cracks where it
+    // crosses its mean.
+    if mid > 0.72 {
+        c = scale(c, 1.0 - 0.8 * (mid - 0.72));
+    }
+    let crack = (mid - 0.5).abs();
+    if crack < 0.012 {
+        c = scale(c, 1.0 - (0.18 - 15.0 * crack) * octave(0.02, footprint));
+    }
+    // Stones: one candidate per 9 cm cell.
+    let (sx, sy) = (x / 0.09, y / 0.09);
+    let ((cx, ix), (cy, iy)) = (floor(sx), floor(sy));
+    let h = hash(ix, iy, 7, 5);
+    if h < 0.12 && w_fine > 0.0 {
+        let ox = 0.3 + 0.4 * hash(ix, iy, 8, 5);
+        let oy = 0.3 + 0.4 * hash(ix, iy, 9, 5);
+        let r = 0.12 + 0.22 * h / 0.12;
+        let d2 = (sx - cx - ox).powi(2) + (sy - cy - oy).powi(2);
+        if d2 < r * r {
+            let g = 0.46 + 0.16 * hash(ix, iy, 10, 5);
+            // Lit from one side, like a rounded pebble.
+            let side = ((sx - cx - ox) + (sy - cy - oy)) / r;
+            let stone = scale(
+                [g, g * 0.97, g * 0.92],
+                1.0 - 0.2 * side - 0.2 * d2 / (r * r),
+            );
+            c = mix(c, stone, w_fine);
+        }
+    }
+    // Sparse weeds in patches.
+    let weeds = 0.75 * noise2(x * 1.7 + 11.0, y * 1.7, 6) + 0.25 * mid;
+    if weeds > 0.66 {
+        c = mix(c, [0.36, 0.42, 0.22], ((weeds - 0.66) * 4.0).min(0.5));
+    }
+    c
+}
+
+/// Grass: green blades (streaks) with yellowish dry patches.
+fn grass(t: [f32; 3], footprint: f32) -> [f32; 3] {
+    let (x, y) = (t[0], t[1]);
+    let patch = noise2(x * 0.6, y * 0.6, 21);
+    let w = octave(0.015, footprint);
+    let blades = if w > 0.0 {
+        0.5 + (noise2(x * 90.0, y * 30.0, 22) - 0.5) * w
+    } else {
+        0.5
+    };
+    let mid = noise2(x * 7.0, y * 7.0, 23);
+    let c = mix(
+        [0.28, 0.43, 0.16],
+        [0.50, 0.50, 0.26],
+        (patch - 0.35).clamp(0.0, 1.0),
+    );
+    scale(c, 0.72 + 0.35 * blades + 0.15 * mid)
+}
+
+/// Vine bark: grey-brown with long dark fissures along the wood (ridged noise stretched
+/// along z for trunks, the furrows of cordons come out shorter) and lighter shreds.
+fn bark(t: [f32; 3], footprint: f32) -> [f32; 3] {
+    let n = noise3([t[0] * 80.0, t[1] * 80.0, t[2] * 9.0], 31);
+    let ridge = (n - 0.5).abs();
+    let mut c = scale([0.40, 0.32, 0.25], 0.8 + 0.5 * ridge);
+    let w = octave(0.012, footprint);
+    if ridge < 0.07 {
+        c = scale(c, 1.0 - (0.55 - 7.0 * ridge) * w.max(0.4));
+    }
+    if ridge > 0.42 {
+        c = mix(c, [0.56, 0.50, 0.43], (ridge - 0.42) * 8.0);
+    }
+    c
+}
+
+/// A vine leaf: green varying from leaf to leaf (a function of the plant-local position,
+/// so clones match), a lighter midrib and palmate main veins, paler underside.
+fn leaf(s: &Surface) -> [f32; 3] {
+    // Corner 0 is the petiole end; the tip is the corner farther from it, the other the
+    // leaf's side corner (see `world::shapes::leaf`).
+    let d = |k: usize| {
+        let a = s.corners[0];
+        let b = s.corners[k];
+        (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+    };
+    let (tip, side) = if d(1) > d(2) { (1, 2) } else { (2, 1) };
+    let across = s.w[side];
+    let along = s.w[tip] + 0.45 * s.w[side];
+    // One tone per leaf (from its petiole end's plant-local position), flecks on the blade.
+    let c0 = s.corners[0].map(|c| floor(c * 500.0).1);
+    let tone = hash(c0[0], c0[1], c0[2], 41);
+    let fleck = noise2(along * 14.0, across * 9.0 + tone * 50.0, 42);
+    let mut c = mix([0.22, 0.40, 0.10], [0.42, 0.52, 0.16], tone);
+    c = scale(c, 0.9 + 0.2 * fleck);
+    // Veins: the midrib (across = 0) and two main veins each side spreading from the base.
+    let angle = across / (along + 0.08);
+    let vein = (angle - 0.55).abs().min((angle - 1.3).abs()) * (along + 0.1);
+    if across < 0.035 {
+        c = mix(c, [0.62, 0.70, 0.36], 0.75);
+    } else if vein < 0.025 {
+        c = mix(c, [0.55, 0.64, 0.30], 0.55);
+    }
+    // Margin: slightly darker, serrated by noise.
+    if across + 0.9 * along > 0.95 + 0.05 * fleck {
+        c = scale(c, 0.8);
+    }
+    if s.back {
+        c = mix(c, [0.62, 0.66, 0.52], 0.35);
+    }
+    c
+}
+
+/// Distant trees above the horizon, seen in the unit direction `d` (world frame): their
+/// crown line height (elevation sine) and colour, or `None` where there is sky.
+pub(crate) fn tree_line(d: &[f32; 3]) -> Option<[f32; 3]> {
+    if d[2] > 0.03 || d[2] < -0.05 {
+        return None;
+    }
+    let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-6);
+    let (x, y) = (d[0] / h * 30.0, d[1] / h * 30.0);
+    let crown = 0.006 + 0.012 * noise2(x, y, 81) + 0.008 * noise2(x * 5.0, y * 5.0, 82);
+    if d[2] > crown {
+        return None;
+    }
+    let leaf = noise2(x * 25.0, y * 25.0 + d[2] * 600.0, 83);
+    Some(scale([0.30, 0.38, 0.30], 0.8 + 0.3 * leaf))
+}
+
+/// A bunch of dark purple berries with a whitish bloom; one berry per 1.6 cm cell.
+fn grape(t: [f32; 3]) -> [f32; 3] {
+    let g = t.map(|c| c / 0.016);
+    let fl = g.map(floor);
+    let f = fl.map(|c| c.0);
+    let i = fl.map(|c| c.1);
+    let r2: f32 = (0..3).map(|k| (g[k] - f[k] - 0.5).powi(2)).sum::<f32>();
+    let tone = hash(i[0], i[1], i[2], 51);
+    let base = mix([0.16, 0.08, 0.18], [0.28, 0.14, 0.26], tone);
+    let shade = (1.0 - 1.6 * r2).max(0.25);
+    let bloom = (1.0 - 4.0 * r2).max(0.0) * 0.12;
+    [
+        base[0] * shade + bloom,
+        base[1] * shade + bloom,
+        base[2] * shade + 1.3 * bloom,
+    ]
+}
+
+/// Wooden posts (treated pine): grey-brown with grain along the post and cracks.
+fn post(t: [f32; 3]) -> [f32; 3] {
+    let grain = noise3([t[0] * 160.0, t[1] * 160.0, t[2] * 6.0], 61);
+    let knots = noise3(t.map(|c| c * 12.0), 62);
+    let mut c = scale([0.55, 0.50, 0.42], 0.82 + 0.25 * grain);
+    if (grain - 0.5).abs() < 0.03 {
+        c = scale(c, 0.6);
+    }
+    if knots > 0.8 {
+        c = scale(c, 0.75);
+    }
+    c
+}
+
+/// Galvanised wire: light grey with a faint sheen variation.
+fn wire(t: [f32; 3]) -> [f32; 3] {
+    let n = noise3(t.map(|c| c * 5.0), 71);
+    scale([0.72, 0.73, 0.75], 0.85 + 0.2 * n)
+}
