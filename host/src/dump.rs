@@ -24,6 +24,7 @@ pub struct Dump {
     lidar_times: Option<BufWriter<File>>,
     lidar_count: usize,
     scans: [Option<BufWriter<File>>; 2],
+    rgbd_lists: Option<[BufWriter<File>; 3]>,
 }
 
 fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
@@ -60,6 +61,7 @@ impl Dump {
             lidar_times: None,
             lidar_count: 0,
             scans: [None, None],
+            rgbd_lists: None,
         })
     }
 
@@ -121,6 +123,7 @@ impl Dump {
                 fs::write(&path, bytes).with_context(|| path.display().to_string())?;
                 self.lidar_count += 1;
             }
+            Message::Rgbd(frame) => self.write_rgbd(frame)?,
             Message::Scan2d(scan) => {
                 let slot = &mut self.scans[scan.side as usize];
                 let path = self.tmp.join(format!("{}.csv", scan.side.name()));
@@ -136,6 +139,53 @@ impl Dump {
         Ok(())
     }
 
+    /// One camera frame in the TUM RGB-D layout (Sturm et al. 2012): `rgbd/rgb/<t>.png`,
+    /// `rgbd/depth/<t>.png` (16-bit, metres × 5000, 0 invalid), listed in `rgb.txt` and
+    /// `depth.txt`, and paired in `associations.txt` as ORB-SLAM2's and RTAB-Map's tools read.
+    fn write_rgbd(&mut self, frame: &sim::sensors::RgbdFrame) -> anyhow::Result<()> {
+        let dir = self.tmp.join("rgbd");
+        if self.rgbd_lists.is_none() {
+            fs::create_dir_all(dir.join("rgb"))?;
+            fs::create_dir_all(dir.join("depth"))?;
+            let mut lists = [
+                create(&dir.join("rgb.txt"))?,
+                create(&dir.join("depth.txt"))?,
+                create(&dir.join("associations.txt"))?,
+            ];
+            writeln!(lists[0], "# color images\n# timestamp filename")?;
+            writeln!(
+                lists[1],
+                "# depth maps (16-bit PNG, depth in metres x 5000, 0: invalid)\n# timestamp filename"
+            )?;
+            self.rgbd_lists = Some(lists);
+        }
+        let t = seconds(frame.stamp_ns);
+        let image = &frame.image;
+        sim::camera::save_rgb_png(&dir.join(format!("rgb/{t}.png")), image)?;
+        let depth: Vec<u16> = image
+            .depth_m
+            .iter()
+            .map(|&d| {
+                if d.is_finite() && d > 0.0 {
+                    (d * 5000.0).round().min(65535.0) as u16
+                } else {
+                    0
+                }
+            })
+            .collect();
+        write_png16(
+            &dir.join(format!("depth/{t}.png")),
+            image.width as u32,
+            image.height as u32,
+            &depth,
+        )?;
+        let lists = self.rgbd_lists.as_mut().expect("opened above");
+        writeln!(lists[0], "{t} rgb/{t}.png")?;
+        writeln!(lists[1], "{t} depth/{t}.png")?;
+        writeln!(lists[2], "{t} rgb/{t}.png {t} depth/{t}.png")?;
+        Ok(())
+    }
+
     /// Flushes everything and moves the folder into place; returns its path.
     pub fn finish(mut self) -> anyhow::Result<PathBuf> {
         let writers = [
@@ -147,7 +197,12 @@ impl Dump {
         for w in writers.into_iter().flatten() {
             w.flush()?;
         }
-        for w in self.scans.iter_mut().flatten() {
+        for w in self
+            .scans
+            .iter_mut()
+            .flatten()
+            .chain(self.rgbd_lists.iter_mut().flatten())
+        {
             w.flush()?;
         }
         if self.target.exists() {
@@ -191,6 +246,19 @@ fn scan_header(scan: &LaserScan) -> String {
         scan.range_min_m,
         scan.range_max_m
     )
+}
+
+/// A 16-bit grayscale PNG (big-endian samples, as PNG stores them).
+fn write_png16(path: &Path, width: u32, height: u32, values: &[u16]) -> anyhow::Result<()> {
+    let file = BufWriter::new(File::create(path).with_context(|| path.display().to_string())?);
+    let mut encoder = png::Encoder::new(file, width, height);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    let mut writer = encoder.write_header()?;
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+    writer.write_image_data(&bytes)?;
+    writer.finish()?;
+    Ok(())
 }
 
 /// Seconds with nanosecond precision, as TUM files want them.

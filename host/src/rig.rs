@@ -91,8 +91,27 @@ pub fn rig(cfg: &SimConfig) -> Rig {
         ..spec("lidar", SensorKind::Lidar, s.lidar.rate_hz)
     }
     .with_mount(&s.lidar.mount.base_from_sensor());
+    let cam = &s.camera;
+    let k = sim::camera::Intrinsics::from_config(cam);
+    let camera = SensorSpec {
+        intrinsics: figures(&[
+            ("width", cam.width as f64),
+            ("height", cam.height as f64),
+            ("fx", k.fx),
+            ("fy", k.fy),
+            ("cx", k.cx),
+            ("cy", k.cy),
+            ("min_depth_m", cam.min_depth_m),
+            ("max_depth_m", cam.max_depth_m),
+        ]),
+        noise: noise_or_zero(cam.noise, &[("rgb_sigma", cam.rgb_sigma)]),
+        ..spec("camera", SensorKind::Rgbd, cam.rate_hz)
+    }
+    // The intrinsics apply in the optical frame (z forward, x right, y down).
+    .with_mount(&(cam.mount.base_from_sensor() * sim::camera::camera_from_optical()));
     Rig {
         sensors: vec![
+            camera,
             imu,
             odom,
             lidar,

@@ -138,3 +138,40 @@ fn unknown_scenario_and_sensor_are_named() {
         stderr(&o)
     );
 }
+
+/// The camera is dumped as a TUM RGB-D folder: listed frames, 8-bit colour and 16-bit
+/// depth PNGs (metres x 5000).
+#[test]
+fn simulate_dumps_the_camera_as_tum_rgbd() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("cam");
+    let o = vinebench(&[
+        "simulate",
+        "--scenario",
+        "s0",
+        "--sensors",
+        "gt,rgbd",
+        "--max-time",
+        "1",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "simulate failed: {}", stderr(&o));
+    let rgb = lines(&out.join("rgbd/rgb.txt"));
+    let frames: Vec<&String> = rgb.iter().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(frames.len(), 31, "30 Hz over 1 s, both ends included");
+    assert_eq!(
+        lines(&out.join("rgbd/associations.txt")).len(),
+        31,
+        "one association per frame"
+    );
+    let (stamp, file) = frames[10].split_once(' ').expect("timestamp filename");
+    assert_eq!(file, format!("rgb/{stamp}.png"), "TUM RGB-D naming");
+    let depth = std::fs::read(out.join(format!("rgbd/depth/{stamp}.png"))).expect("depth PNG");
+    // IHDR: width, height, bit depth 16, colour type 0 (grayscale).
+    assert_eq!(
+        &depth[16..26],
+        &[0, 0, 2, 128, 0, 0, 1, 224, 16, 0],
+        "640x480 16-bit grayscale"
+    );
+}

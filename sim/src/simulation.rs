@@ -3,14 +3,15 @@
 
 use std::str::FromStr;
 
+use crate::camera::RgbdCamera;
 use crate::config::{RaycasterKind, SimConfig};
 use crate::error::SimError;
 use crate::raycast::{Bvh, ParryCaster, RayCaster};
 use crate::rng::stream;
 use crate::robot::{Route, Trajectory, drive};
 use crate::sensors::{
-    GroundTruthSensor, ImuSensor, LidarSensor, Message, Scan2dSensor, ScanSide, Scene, Sensor,
-    WheelOdometrySensor,
+    GroundTruthSensor, ImuSensor, LidarSensor, Message, RgbdSensor, Scan2dSensor, ScanSide, Scene,
+    Sensor, WheelOdometrySensor,
 };
 use crate::world::World;
 
@@ -22,6 +23,7 @@ pub struct SensorSet {
     pub wheel_odometry: bool,
     pub lidar: bool,
     pub scan2d: bool,
+    pub rgbd: bool,
 }
 
 impl SensorSet {
@@ -31,13 +33,14 @@ impl SensorSet {
         wheel_odometry: true,
         lidar: true,
         scan2d: true,
+        rgbd: true,
     };
 }
 
 impl FromStr for SensorSet {
     type Err = String;
 
-    /// Parses `gt,imu,odom,lidar,scan2d` (any subset, comma-separated) or `all`.
+    /// Parses `gt,imu,odom,lidar,scan2d,rgbd` (any subset, comma-separated) or `all`.
     fn from_str(s: &str) -> Result<Self, String> {
         let mut set = SensorSet::default();
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
@@ -48,9 +51,10 @@ impl FromStr for SensorSet {
                 "odom" => set.wheel_odometry = true,
                 "lidar" => set.lidar = true,
                 "scan2d" => set.scan2d = true,
+                "rgbd" => set.rgbd = true,
                 other => {
                     return Err(format!(
-                        "unknown sensor '{other}' (known: gt, imu, odom, lidar, scan2d, all)"
+                        "unknown sensor '{other}' (known: gt, imu, odom, lidar, scan2d, rgbd, all)"
                     ));
                 }
             }
@@ -167,6 +171,10 @@ impl Simulation {
         if sensors.lidar {
             list.push(Box::new(LidarSensor::new(&s.lidar, end, rng("lidar"))));
         }
+        if sensors.rgbd {
+            let camera = RgbdCamera::new(&s.camera, &self.world);
+            list.push(Box::new(RgbdSensor::new(camera, end, rng("rgbd"))));
+        }
         Stream {
             scene: self.scene(),
             sensors: list,
@@ -176,7 +184,7 @@ impl Simulation {
 
 /// Messages of several sensors merged in the order they become available (a lidar sweep at
 /// its end, everything else at its stamp); ties go to the sensor listed first (ground
-/// truth, IMU, odometry, 2D scans, lidar). Lazy: one message is made per `next`.
+/// truth, IMU, odometry, 2D scans, lidar, camera). Lazy: one message is made per `next`.
 #[derive(Debug)]
 pub struct Stream<'a> {
     scene: Scene<'a>,

@@ -179,6 +179,10 @@ impl Recorder {
                 &encode::point_cloud(m),
             ),
             Message::Scan2d(m) => self.scan(m),
+            // `vinebench record` refuses the camera before it starts.
+            Message::Rgbd(_) => Err(DatasetError::decode(
+                "the RGB-D camera cannot be recorded yet",
+            )),
         }
     }
 

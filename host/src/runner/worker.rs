@@ -175,6 +175,15 @@ fn deliver(
                 points,
             })
         }
+        Message::Rgbd(f) => instance.on_rgbd(&plugin_api::RgbdFrame {
+            stamp_ns: f.stamp_ns,
+            sensor: "camera",
+            width: f.image.width as u32,
+            height: f.image.height as u32,
+            rgb: &f.image.rgb,
+            depth_m: &f.image.depth_m,
+            intrinsics: f.image.intrinsics,
+        }),
         Message::Scan2d(s) => instance.on_laser_scan(&LaserScan {
             stamp_ns: s.stamp_ns,
             sensor: s.side.name(),

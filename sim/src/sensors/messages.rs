@@ -85,6 +85,13 @@ pub struct LaserScan {
     pub intensities: Vec<f32>,
 }
 
+/// One frame of the RGB-D camera (see [`crate::camera`] for its frames and conventions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbdFrame {
+    pub stamp_ns: i64,
+    pub image: crate::camera::RgbdImage,
+}
+
 /// Anything the simulator emits.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Message {
@@ -93,6 +100,7 @@ pub enum Message {
     WheelOdometry(WheelOdometry),
     Lidar(LidarScan),
     Scan2d(LaserScan),
+    Rgbd(RgbdFrame),
 }
 
 impl Message {
@@ -104,6 +112,7 @@ impl Message {
             Message::WheelOdometry(m) => m.stamp_ns,
             Message::Lidar(m) => m.stamp_ns,
             Message::Scan2d(m) => m.stamp_ns,
+            Message::Rgbd(m) => m.stamp_ns,
         }
     }
 
@@ -115,6 +124,7 @@ impl Message {
             Message::WheelOdometry(_) => "odom",
             Message::Lidar(_) => "lidar",
             Message::Scan2d(m) => m.side.name(),
+            Message::Rgbd(_) => "rgbd",
         }
     }
 }

@@ -5,6 +5,7 @@ mod ground_truth;
 mod imu;
 mod lidar;
 mod messages;
+mod rgbd;
 mod scan2d;
 mod wheel_odometry;
 
@@ -12,8 +13,10 @@ pub use ground_truth::GroundTruthSensor;
 pub use imu::ImuSensor;
 pub use lidar::{LidarSensor, vlp16_directions};
 pub use messages::{
-    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, ScanSide, WheelOdometry,
+    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, RgbdFrame, ScanSide,
+    WheelOdometry,
 };
+pub use rgbd::RgbdSensor;
 pub use scan2d::Scan2dSensor;
 pub use wheel_odometry::WheelOdometrySensor;
 
