@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::{LaserScan, Message, ScanSide, Scene, Sensor, sample_time_ns};
 use crate::config::{NoiseProfile, Scan2dConfig};
+use crate::raycast::Hit;
 use crate::rng::SimRng;
 
 /// Samples cast together as one parallel task.
@@ -75,31 +76,33 @@ impl Sensor for Scan2dSensor {
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let (t_min, t_max) = (self.cfg.min_range_m as f32, self.cfg.max_range_m as f32);
         let mesh = &scene.world.mesh;
-        // Cast in parallel chunks of consecutive samples, each sample from its own pose.
-        let mut hits = vec![None; self.cfg.samples];
+        // Cast in parallel chunks of consecutive samples, each from its own pose; keep the
+        // hit with its incidence cosine. Noise is added afterwards in sample order.
+        let mut hits: Vec<Option<(Hit, f32)>> = vec![None; self.cfg.samples];
         hits.par_chunks_mut(SAMPLES_PER_TASK)
             .enumerate()
             .for_each(|(task, out)| {
                 for (j, slot) in out.iter_mut().enumerate() {
                     let (origin, dir) = self.ray(scene, stamp_ns, task * SAMPLES_PER_TASK + j);
-                    *slot = scene.caster.cast(&origin, &dir, t_min, t_max);
+                    *slot = scene
+                        .caster
+                        .cast(&origin, &dir, t_min, t_max)
+                        .map(|h| (h, mesh.normal(h.triangle as usize).dot(&dir).abs()));
                 }
             });
         let mut ranges = Vec::with_capacity(self.cfg.samples);
         let mut intensities = Vec::with_capacity(self.cfg.samples);
-        for (i, hit) in hits.into_iter().enumerate() {
+        for hit in hits {
             let (range, intensity) = match hit {
-                Some(h) => {
+                Some((h, cos)) => {
                     let r = if noisy {
                         h.t + noise.sample(&mut self.rng) as f32
                     } else {
                         h.t
                     };
-                    let tri = h.triangle as usize;
-                    let (_, dir) = self.ray(scene, stamp_ns, i);
-                    let cos = mesh.normal(tri).dot(&dir).abs();
                     if (t_min..=t_max).contains(&r) {
-                        (r, 255.0 * mesh.materials[tri].nir_reflectivity() * cos)
+                        let material = mesh.materials[h.triangle as usize];
+                        (r, 255.0 * material.nir_reflectivity() * cos)
                     } else {
                         (f32::INFINITY, 0.0)
                     }
