@@ -3,7 +3,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::ray::Ray;
-use super::triangle::Triangle;
+use super::triangle::{Triangle, hittable};
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
 
@@ -24,13 +24,7 @@ impl std::fmt::Debug for BruteForce {
 
 impl BruteForce {
     pub fn build(mesh: &Mesh) -> Self {
-        let triangles = (0..mesh.triangles.len())
-            .filter_map(|i| {
-                let [a, b, c] = mesh.corners(i);
-                let id = u32::try_from(i).expect("mesh exceeds u32 triangles");
-                Triangle::new(a.coords.into(), b.coords.into(), c.coords.into()).map(|t| (t, id))
-            })
-            .collect();
+        let triangles = hittable(mesh).map(|(id, _, t)| (t, id)).collect();
         Self { triangles }
     }
 }

@@ -6,7 +6,7 @@ use parry3d::math::Vector as PVector;
 use parry3d::query::{PointQuery, Ray as PRay, RayCast};
 use parry3d::shape::TriMesh;
 
-use super::triangle::Triangle;
+use super::triangle::hittable;
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
 
@@ -36,12 +36,9 @@ impl ParryCaster {
             .collect();
         let mut indices = Vec::new();
         let mut ids = Vec::new();
-        for (i, tri) in mesh.triangles.iter().enumerate() {
-            let [a, b, c] = mesh.corners(i).map(|p| <[f32; 3]>::from(p.coords));
-            if Triangle::new(a, b, c).is_some() {
-                indices.push(*tri);
-                ids.push(u32::try_from(i).expect("mesh exceeds u32 triangles"));
-            }
+        for (id, _, _) in hittable(mesh) {
+            indices.push(mesh.triangles[id as usize]);
+            ids.push(id);
         }
         let trimesh = if indices.is_empty() {
             None

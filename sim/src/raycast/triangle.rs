@@ -7,6 +7,17 @@
 
 use super::aabb::Aabb;
 use super::ray::Ray;
+use crate::world::Mesh;
+
+/// The mesh's triangles that rays can hit: (mesh index, corners, precomputed triangle),
+/// degenerate ones left out. Every caster builds from this, so they agree on what exists.
+pub(crate) fn hittable(mesh: &Mesh) -> impl Iterator<Item = (u32, [[f32; 3]; 3], Triangle)> + '_ {
+    (0..mesh.triangles.len()).filter_map(|i| {
+        let [a, b, c] = mesh.corners(i).map(|p| <[f32; 3]>::from(p.coords));
+        let id = u32::try_from(i).expect("mesh exceeds u32 triangles");
+        Triangle::new(a, b, c).map(|t| (id, [a, b, c], t))
+    })
+}
 
 /// `|cos|` of the angle between ray and triangle plane below which the ray counts as parallel
 /// to the triangle and misses it (grazing angles under about 1e-6 rad).

@@ -10,7 +10,7 @@ use super::node::{Node, NodePair};
 use super::sah::split;
 use super::{Bvh, collapse};
 use crate::raycast::aabb::Aabb;
-use crate::raycast::triangle::Triangle;
+use crate::raycast::triangle::{Triangle, hittable};
 use crate::world::Mesh;
 
 /// Most triangles in a leaf.
@@ -32,15 +32,12 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
         bounds: Vec::with_capacity(mesh.triangles.len()),
         centers: Vec::with_capacity(mesh.triangles.len()),
     };
-    for i in 0..mesh.triangles.len() {
-        let [a, b, c] = mesh.corners(i).map(|p| <[f32; 3]>::from(p.coords));
-        if let Some(tri) = Triangle::new(a, b, c) {
-            let bounds = Triangle::bounds(&a, &b, &c);
-            tris.push(tri);
-            ids.push(u32::try_from(i).expect("mesh exceeds u32 triangles"));
-            prims.centers.push(bounds.center());
-            prims.bounds.push(bounds);
-        }
+    for (id, [a, b, c], tri) in hittable(mesh) {
+        let bounds = Triangle::bounds(&a, &b, &c);
+        tris.push(tri);
+        ids.push(id);
+        prims.centers.push(bounds.center());
+        prims.bounds.push(bounds);
     }
     if tris.is_empty() {
         return Bvh {
