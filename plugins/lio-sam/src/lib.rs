@@ -1,0 +1,1 @@
+//! LIO-SAM-style lidar-inertial SLAM (work in progress).

@@ -1,0 +1,227 @@
+//! The factor-graph backend every plugin shares: a small interface (variables, factors,
+//! update, estimate) so that the pipeline never names the solver, and implementations
+//! chosen by name in a plugin's configuration (`backend = "factrs"`).
+//!
+//! Poses are `world_from_body` isometries; the body is whatever frame the plugin keeps its
+//! graph in (for IMU factors: the IMU's frame). Keys are plain integers per kind of
+//! variable, so pose 7, velocity 7 and bias 7 belong to the same keyframe.
+
+use nalgebra::{Isometry3, Vector3, Vector6};
+use serde::Deserialize;
+
+/// Which kind of variable a key names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Var {
+    /// `world_from_body`, an SE(3) pose.
+    Pose(u64),
+    /// Body velocity in the world frame, m/s.
+    Velocity(u64),
+    /// IMU biases.
+    Bias(u64),
+}
+
+/// Accelerometer and gyroscope biases.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ImuBias {
+    pub accel_mps2: Vector3<f64>,
+    pub gyro_rps: Vector3<f64>,
+}
+
+/// One IMU sample to be preintegrated: specific force and angular rate in the IMU frame,
+/// held for `dt_s` seconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuSample {
+    pub dt_s: f64,
+    pub accel_mps2: Vector3<f64>,
+    pub gyro_rps: Vector3<f64>,
+}
+
+/// Continuous-time IMU noise (Kalibr's convention), and gravity.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImuNoise {
+    /// m/s²/√Hz
+    pub accel_noise_density: f64,
+    /// rad/s/√Hz
+    pub gyro_noise_density: f64,
+    /// m/s³/√Hz
+    pub accel_bias_random_walk: f64,
+    /// rad/s²/√Hz
+    pub gyro_bias_random_walk: f64,
+    /// Magnitude of gravity, m/s²; it points along −z of the world.
+    pub gravity_mps2: f64,
+}
+
+impl Default for ImuNoise {
+    /// LIO-SAM's defaults (`imuAccNoise`, `imuGyrNoise`, `imuAccBiasN`, `imuGyrBiasN`,
+    /// `imuGravity` in its params.yaml).
+    fn default() -> Self {
+        Self {
+            accel_noise_density: 3.9939570888238808e-03,
+            gyro_noise_density: 1.5636343949698187e-03,
+            accel_bias_random_walk: 6.4356659353532566e-05,
+            gyro_bias_random_walk: 3.5640318696367613e-05,
+            gravity_mps2: 9.80511,
+        }
+    }
+}
+
+/// A robust kernel for a factor's whitened residual.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Robust {
+    #[default]
+    None,
+    Huber(f64),
+    Cauchy(f64),
+}
+
+/// Standard deviations of a 6-DoF pose error: rotation (rad, about x, y, z of the body),
+/// then translation (m, x, y, z).
+pub type PoseSigmas = Vector6<f64>;
+
+/// A factor. Each names the variables it constrains; every variable must have been
+/// inserted before the factor is added.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Factor {
+    /// Anchors a pose.
+    PosePrior {
+        key: u64,
+        world_from_body: Isometry3<f64>,
+        sigmas: PoseSigmas,
+    },
+    /// Anchors a velocity, m/s.
+    VelocityPrior {
+        key: u64,
+        velocity_mps: Vector3<f64>,
+        sigma_mps: f64,
+    },
+    /// Anchors a bias (accelerometer sigma, gyroscope sigma).
+    BiasPrior {
+        key: u64,
+        bias: ImuBias,
+        sigma_accel: f64,
+        sigma_gyro: f64,
+    },
+    /// Relative pose `from_from_to` (odometry, a loop closure), optionally robust.
+    Between {
+        from: u64,
+        to: u64,
+        from_from_to: Isometry3<f64>,
+        sigmas: PoseSigmas,
+        robust: Robust,
+    },
+    /// IMU preintegration between two keyframes (Forster et al. 2017): constrains pose,
+    /// velocity and bias of `from` and of `to`, and the bias random walk between them.
+    /// `samples` are integrated from `from`'s time to `to`'s, with `from`'s bias
+    /// estimate at the time the factor is built as the linearisation point.
+    Imu {
+        from: u64,
+        to: u64,
+        samples: Vec<ImuSample>,
+        noise: ImuNoise,
+    },
+}
+
+/// Identifies an added factor so that it can be removed (a rejected loop closure).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct FactorId(pub u64);
+
+/// How much of the graph an update may move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scope {
+    /// Per-keyframe update: the cost must stay flat as the graph grows (warm start and
+    /// a window of recent variables; older ones held at their estimate).
+    Incremental,
+    /// Everything, e.g. after a loop closure.
+    Full,
+}
+
+/// What an update did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateReport {
+    /// Variables the solver moved.
+    pub variables: usize,
+    /// Factors it linearised.
+    pub factors: usize,
+    pub iterations: usize,
+    /// Sum of squared whitened residuals before and after.
+    pub error_before: f64,
+    pub error_after: f64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum BackendError {
+    #[error("unknown backend {0:?} (known: \"factrs\")")]
+    Unknown(String),
+    #[error("factor refers to {0:?}, which was never inserted")]
+    MissingVariable(Var),
+    #[error("variable {0:?} inserted twice")]
+    Duplicate(Var),
+    #[error("solver failed: {0}")]
+    Solver(String),
+}
+
+/// A factor graph that grows keyframe by keyframe.
+pub trait Backend: Send + std::fmt::Debug {
+    /// Adds a variable with its initial estimate.
+    fn insert(&mut self, var: Var, initial: Value) -> Result<(), BackendError>;
+    fn add(&mut self, factor: Factor) -> Result<FactorId, BackendError>;
+    /// Removes a factor; false if there was none with that id.
+    fn remove(&mut self, id: FactorId) -> bool;
+    /// Optimises and keeps the result as the new estimate.
+    fn update(&mut self, scope: Scope) -> Result<UpdateReport, BackendError>;
+    /// The current estimate of a variable.
+    fn value(&self, var: Var) -> Option<Value>;
+    /// Sets the estimate of a variable (e.g. restoring a saved graph).
+    fn set_value(&mut self, var: Var, value: Value) -> Result<(), BackendError>;
+    /// The whitened residual norm of a factor at the current estimate (√ of its
+    /// Mahalanobis error): how many standard deviations it is from being satisfied.
+    fn factor_error(&self, id: FactorId) -> Option<f64>;
+    /// Every pose key, ascending.
+    fn pose_keys(&self) -> Vec<u64>;
+
+    fn pose(&self, key: u64) -> Option<Isometry3<f64>> {
+        match self.value(Var::Pose(key))? {
+            Value::Pose(p) => Some(p),
+            _ => None,
+        }
+    }
+}
+
+/// The value of a variable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value {
+    Pose(Isometry3<f64>),
+    Velocity(Vector3<f64>),
+    Bias(ImuBias),
+}
+
+/// Backend settings from a plugin's configuration (a `[backend]` table).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BackendConfig {
+    /// Which implementation: "factrs".
+    pub name: String,
+    /// Keyframes the incremental update may move; older ones are held fixed.
+    pub window: usize,
+    /// Levenberg–Marquardt iterations per update.
+    pub max_iterations: usize,
+}
+
+impl Default for BackendConfig {
+    fn default() -> Self {
+        Self {
+            name: "factrs".into(),
+            window: 20,
+            max_iterations: 10,
+        }
+    }
+}
+
+/// Builds the backend a configuration names.
+pub fn from_config(config: &BackendConfig) -> Result<Box<dyn Backend>, BackendError> {
+    match config.name.as_str() {
+        // "factrs" => Ok(Box::new(factrs::FactrsBackend::new(config))),
+        other => Err(BackendError::Unknown(other.to_string())),
+    }
+}
