@@ -10,22 +10,43 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_json::Value;
-use sim::sensors::Message;
+use sim::camera::RgbdImage;
+use sim::sensors::{Message, RgbdFrame};
 use sim::{SensorSet, SimConfig, Simulation};
 use vinebench::dataset::{Replay, replay_messages};
 
 const SECONDS: f64 = 5.0;
 const SEED: u64 = 7;
-/// Every sensor a recording can hold (the camera's topics are still to come).
-const RECORDABLE: SensorSet = SensorSet {
+/// What `vinebench record` records by default: every sensor but the camera.
+const DEFAULT_SENSORS: SensorSet = SensorSet {
     rgbd: false,
     ..SensorSet::ALL
 };
+/// The camera's recordings are short: 31 frames at 30 Hz (both ends), about 70 MB.
+const CAMERA_SECONDS: f64 = 1.0;
+const CAMERA_ONLY: SensorSet = SensorSet {
+    ground_truth: false,
+    imu: false,
+    wheel_odometry: false,
+    lidar: false,
+    scan2d: false,
+    rgbd: true,
+};
+const CAMERA_TOPICS: [&str; 3] = [
+    "/camera/color/image_raw",
+    "/camera/depth/image_raw",
+    "/camera/color/camera_info",
+];
 
 fn record(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    record_for(dir, name, SECONDS, extra)
+}
+
+fn record_for(dir: &Path, name: &str, seconds: f64, extra: &[&str]) -> PathBuf {
     let path = dir.join(name);
-    let max_time = SECONDS.to_string();
+    let max_time = seconds.to_string();
     let seed = SEED.to_string();
     let mut args = vec!["record", "--scenario", "s0", "--max-time", &max_time];
     args.extend(["--seed", &seed, "-o", path.to_str().expect("UTF-8 path")]);
@@ -46,21 +67,64 @@ fn config() -> SimConfig {
     SimConfig::from_toml_str(sim::DEFAULT_CONFIG_TOML, "world.toml").expect("default config")
 }
 
-/// The stream `vinebench record` writes: every recordable sensor, cut where `--max-time`
-/// cuts it.
+/// The stream `vinebench record` writes by default, cut where `--max-time` cuts it.
 fn live() -> Vec<Message> {
+    live_for(SECONDS, DEFAULT_SENSORS)
+}
+
+fn live_for(seconds: f64, sensors: SensorSet) -> Vec<Message> {
     let sim = Simulation::new(&config(), "s0", SEED).expect("s0 builds");
-    let end = sim.duration_ns().min((SECONDS * 1e9) as i64);
-    sim.stream(RECORDABLE)
+    let end = sim.duration_ns().min((seconds * 1e9) as i64);
+    sim.stream(sensors)
         .take_while(|m| m.stamp_ns() <= end)
         .collect()
+}
+
+/// Bit for bit: a camera frame's depth and intrinsics by their bits (an invalid depth may be
+/// NaN, which `==` never equals), every other message by `==`.
+fn identical(a: &Message, b: &Message) -> bool {
+    let (Message::Rgbd(a), Message::Rgbd(b)) = (a, b) else {
+        return a == b;
+    };
+    // Spelt out whole, so a field added to the image is a compile error here, not skipped.
+    let RgbdImage {
+        width,
+        height,
+        rgb,
+        depth_m,
+        intrinsics,
+    } = &a.image;
+    let bits = |d: &[f32]| d.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+    a.stamp_ns == b.stamp_ns
+        && *width == b.image.width
+        && *height == b.image.height
+        && *rgb == b.image.rgb
+        && bits(depth_m) == bits(&b.image.depth_m)
+        && intrinsics.map(f64::to_bits) == b.image.intrinsics.map(f64::to_bits)
+}
+
+/// A message for an assertion: a camera frame by its stamp and size, not its megabytes.
+fn describe(m: &Message) -> String {
+    match m {
+        Message::Rgbd(RgbdFrame { stamp_ns, image }) => format!(
+            "Rgbd {{ stamp_ns: {stamp_ns}, {} x {}, {} rgb bytes, {} depths, intrinsics: {:?} }}",
+            image.width,
+            image.height,
+            image.rgb.len(),
+            image.depth_m.len(),
+            image.intrinsics
+        ),
+        other => format!("{other:?}"),
+    }
 }
 
 fn assert_same_stream(replayed: &[Message], live: &[Message], what: &str) {
     for (i, (r, l)) in replayed.iter().zip(live).enumerate() {
         assert!(
-            r == l,
-            "{what}: message {i} differs\nreplayed: {r:?}\nlive:     {l:?}"
+            identical(r, l),
+            "{what}: message {i} differs\nreplayed: {}\nlive:     {}",
+            describe(r),
+            describe(l)
         );
     }
     assert_eq!(replayed.len(), live.len(), "{what}: number of messages");
@@ -75,11 +139,11 @@ fn replay_gives_back_the_live_stream_bit_for_bit() {
         live.iter().any(|m| matches!(m, Message::Lidar(_))),
         "the first {SECONDS} s have lidar sweeps"
     );
-    let replayed: Vec<Message> = Replay::open(&path, RECORDABLE)
+    let replayed: Vec<Message> = Replay::open(&path, DEFAULT_SENSORS)
         .unwrap()
         .collect::<Result<_, _>>()
         .unwrap();
-    assert_same_stream(&replayed, &live, "all recordable sensors");
+    assert_same_stream(&replayed, &live, "the default sensors");
 
     // A subset skips the other topics and keeps the order.
     let subset = SensorSet {
@@ -109,11 +173,21 @@ fn the_same_run_records_the_same_bytes() {
         a.len(),
         b.len()
     );
+    // The camera renders in parallel bands; its frames must not depend on the scheduling.
+    let camera = ["--sensors", "rgbd"];
+    let a = std::fs::read(record_for(dir.path(), "ca.mcap", 0.5, &camera)).unwrap();
+    let b = std::fs::read(record_for(dir.path(), "cb.mcap", 0.5, &camera)).unwrap();
+    assert!(
+        a == b,
+        "two camera recordings of one run differ ({} / {} bytes)",
+        a.len(),
+        b.len()
+    );
     let names: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
         .collect();
-    assert_eq!(names.len(), 2, "no temporary files left: {names:?}");
+    assert_eq!(names.len(), 4, "no temporary files left: {names:?}");
 }
 
 #[test]
@@ -307,6 +381,223 @@ fn an_independent_ros2_decoder_reads_the_recording() {
         "base_link → velodyne height"
     );
     assert_eq!(tf["laser_back"]["parent"], "base_link");
+}
+
+/// The camera's frames come back from a recording exactly as the simulator rendered them:
+/// colour bytes, depth bits (invalid pixels included) and intrinsics, in stream order among
+/// every other sensor. No plugin in the workspace consumes the camera yet, so this compares
+/// the replayed stream with the live one message by message (what a plugin would be fed).
+#[test]
+fn the_camera_replays_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = record_for(
+        dir.path(),
+        "all.mcap",
+        CAMERA_SECONDS,
+        &["--sensors", "all"],
+    );
+    let live = live_for(CAMERA_SECONDS, SensorSet::ALL);
+    let frames: Vec<&RgbdFrame> = live
+        .iter()
+        .filter_map(|m| match m {
+            Message::Rgbd(f) => Some(f),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(frames.len(), 31, "30 Hz for {CAMERA_SECONDS} s, both ends");
+    assert!(
+        frames
+            .iter()
+            .any(|f| f.image.depth_m.iter().any(|z| *z == 0.0 || z.is_nan())),
+        "the frames have invalid depth pixels, so their encoding is exercised"
+    );
+    let replayed: Vec<Message> = Replay::open(&path, SensorSet::ALL)
+        .unwrap()
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert_same_stream(&replayed, &live, "every sensor with the camera");
+
+    // The camera alone, as a plugin that needs only it is fed.
+    let replayed: Vec<Message> = replay_messages(&path, CAMERA_ONLY).unwrap().collect();
+    let expected: Vec<Message> = live
+        .into_iter()
+        .filter(|m| matches!(m, Message::Rgbd(_)))
+        .collect();
+    assert_same_stream(&replayed, &expected, "the camera alone");
+}
+
+fn u64s(v: &Value) -> Vec<u64> {
+    v.as_array()
+        .expect("an array")
+        .iter()
+        .map(|x| x.as_u64().expect("an integer"))
+        .collect()
+}
+
+#[test]
+fn an_independent_ros2_decoder_reads_the_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = record_for(
+        dir.path(),
+        "rgbd.mcap",
+        CAMERA_SECONDS,
+        &["--sensors", "rgbd"],
+    );
+    let summary = python_check(&path);
+    let topics = &summary["topics"];
+    let mut names: Vec<&str> = topics
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(String::as_str)
+        .collect();
+    names.sort_unstable();
+    let mut expected_names = CAMERA_TOPICS.to_vec();
+    expected_names.push("/tf_static");
+    expected_names.sort_unstable();
+    assert_eq!(
+        names, expected_names,
+        "the camera's topics and the static TF"
+    );
+
+    // Counts and stamps: 30 Hz for the whole duration, both ends, as the live stream has them.
+    let cfg = config();
+    let cam = &cfg.sensors.camera;
+    let live: Vec<RgbdFrame> = live_for(CAMERA_SECONDS, CAMERA_ONLY)
+        .into_iter()
+        .map(|m| match m {
+            Message::Rgbd(f) => f,
+            other => panic!("a camera-only stream has {}", describe(&other)),
+        })
+        .collect();
+    let stamps: Vec<u64> = live.iter().map(|f| f.stamp_ns as u64).collect();
+    let n = (cam.rate_hz * CAMERA_SECONDS).round() as usize + 1;
+    assert_eq!(stamps.len(), n, "{} Hz for {CAMERA_SECONDS} s", cam.rate_hz);
+    for (k, &stamp) in stamps.iter().enumerate() {
+        let want = (k as f64 * 1e9 / cam.rate_hz).round() as u64;
+        assert_eq!(stamp, want, "frame {k} is stamped k / rate");
+    }
+    for topic in CAMERA_TOPICS {
+        assert_eq!(topics[topic]["count"], n, "{topic} count");
+        assert_eq!(
+            u64s(&topics[topic]["stamps_ns"]),
+            stamps,
+            "{topic} header stamps"
+        );
+    }
+
+    // The first frame's images, decoded independently, against the live frame.
+    let first = &live[0].image;
+    let frame = "camera_color_optical_frame";
+    for (topic, encoding, bytes_per_pixel) in [
+        ("/camera/color/image_raw", "rgb8", 3),
+        ("/camera/depth/image_raw", "32FC1", 4),
+    ] {
+        let py = &topics[topic]["first"];
+        assert_eq!(py["frame_id"], frame, "{topic} frame");
+        assert_eq!(py["encoding"], encoding, "{topic} encoding");
+        assert_eq!(py["height"], first.height, "{topic} height");
+        assert_eq!(py["width"], first.width, "{topic} width");
+        assert_eq!(py["is_bigendian"], 0, "{topic} is little-endian");
+        assert_eq!(
+            py["step"],
+            first.width * bytes_per_pixel,
+            "{topic} step: packed rows"
+        );
+        assert_eq!(
+            py["data_len"],
+            first.width * first.height * bytes_per_pixel,
+            "{topic} data length"
+        );
+    }
+    let byte_sum: u64 = first.rgb.iter().map(|&b| u64::from(b)).sum();
+    assert_eq!(
+        topics["/camera/color/image_raw"]["first"]["byte_sum"], byte_sum,
+        "the colour bytes"
+    );
+    let py = &topics["/camera/depth/image_raw"]["first"];
+    let zeros = first.depth_m.iter().filter(|&&z| z == 0.0).count();
+    let nans = first.depth_m.iter().filter(|z| z.is_nan()).count();
+    assert_eq!(py["zero_pixels"], zeros, "invalid depth as 0, as emitted");
+    assert_eq!(py["nan_pixels"], nans, "invalid depth as NaN, as emitted");
+    assert!(
+        py["first_valid_pixel"].is_u64(),
+        "the first frame has a valid depth pixel"
+    );
+    let samples = py["sample_bits"].as_object().unwrap();
+    assert_eq!(samples.len(), 4, "four sampled depth pixels: {samples:?}");
+    for (index, bits) in samples {
+        let i: usize = index.parse().unwrap();
+        assert_eq!(
+            bits.as_u64(),
+            Some(u64::from(first.depth_m[i].to_bits())),
+            "depth pixel {i}: bits of {}",
+            first.depth_m[i]
+        );
+    }
+
+    // The camera info: the rig's pinhole, no distortion.
+    let rig = vinebench::rig::rig(&cfg);
+    let spec = rig
+        .sensors
+        .iter()
+        .find(|s| s.name == "camera")
+        .expect("the rig has the camera");
+    let k = |name: &str| spec.intrinsics[name];
+    let (fx, fy, cx, cy) = (k("fx"), k("fy"), k("cx"), k("cy"));
+    let py = &topics["/camera/color/camera_info"]["first"];
+    assert_eq!(py["frame_id"], frame);
+    assert_eq!(py["height"], first.height);
+    assert_eq!(py["width"], first.width);
+    assert_eq!(py["distortion_model"], "plumb_bob");
+    assert_eq!(f64s(&py["d"]), vec![0.0; 5], "no distortion");
+    let want_k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0];
+    let want_p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    for (name, want) in [("k", &want_k[..]), ("p", &want_p[..])] {
+        let got = f64s(&py[name]);
+        assert_eq!(got.len(), want.len(), "{name} length");
+        for (g, w) in got.iter().zip(want) {
+            assert!(
+                close(*g, *w),
+                "camera info {name}: {got:?}, expected {want:?}"
+            );
+        }
+    }
+    assert_eq!(
+        f64s(&py["r"]),
+        vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        "r: identity"
+    );
+
+    // The static TF: base_link → the optical frame, as the rig gives the camera, and in the
+    // optical convention: z along the body's forward (x), y along its down (-z).
+    let tf = &topics["/tf_static"]["first"][frame];
+    assert_eq!(tf["parent"], "base_link");
+    for (got, want) in f64s(&tf["translation"])
+        .iter()
+        .zip(spec.base_from_sensor_xyz)
+    {
+        assert!(close(*got, want), "camera translation {got} vs {want}");
+    }
+    let q = f64s(&tf["rotation"]);
+    for (got, want) in q.iter().zip(spec.base_from_sensor_xyzw) {
+        assert!(close(*got, want), "camera rotation {got} vs {want}");
+    }
+    let base_from_optical =
+        UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]));
+    let base_from_body = cam.mount.base_from_sensor().rotation;
+    for (optical_axis, body_axis, what) in [
+        (
+            Vector3::z(),
+            Vector3::x(),
+            "optical z is the body's forward",
+        ),
+        (Vector3::x(), -Vector3::y(), "optical x is the body's right"),
+        (Vector3::y(), -Vector3::z(), "optical y is the body's down"),
+    ] {
+        let d = base_from_optical * optical_axis - base_from_body * body_axis;
+        assert!(d.norm() < 1e-12, "{what}: off by {d:?}");
+    }
 }
 
 #[test]

@@ -76,6 +76,16 @@ impl CdrWriter {
         self.buf.extend_from_slice(data);
     }
 
+    /// `uint8[]` holding `values` as little-endian `f32`s (an image's `32FC1` data): a byte
+    /// count and the values' bits, NaN payloads included.
+    pub fn f32_as_bytes(&mut self, values: &[f32]) {
+        self.seq_len(4 * values.len());
+        self.buf.reserve(4 * values.len());
+        for &v in values {
+            self.buf.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
     /// `float32[]`.
     pub fn f32_seq(&mut self, values: &[f32]) {
         self.seq_len(values.len());

@@ -2,14 +2,15 @@
 //! every value comes back bit for bit.
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use sim::camera::RgbdImage;
 use sim::sensors::{
-    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, ScanSide, WheelOdometry,
+    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, RgbdFrame, ScanSide, WheelOdometry,
 };
 
 use super::DatasetError;
 use super::EPOCH_NS;
 use super::cdr::CdrReader;
-use super::encode::{POINT_FIELDS, POINT_STEP};
+use super::encode::{DEPTH_32FC1, POINT_FIELDS, POINT_STEP, RGB8};
 
 /// `std_msgs/Header`: the stamp in simulated nanoseconds (without [`EPOCH_NS`]) and the frame.
 fn header(r: &mut CdrReader<'_>) -> Result<(i64, String), DatasetError> {
@@ -173,4 +174,166 @@ pub(crate) fn twist_stamped(
         velocity_in_world: vector3(&mut r)?,
         omega_in_base: vector3(&mut r)?,
     })
+}
+
+/// One image of a camera frame, waiting for the rest of the frame.
+#[derive(Debug)]
+pub(crate) struct Plane<T> {
+    pub stamp_ns: i64,
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<T>,
+}
+
+/// A `sensor_msgs/Image` of `encoding`, densely packed little-endian rows: the stamp, the
+/// size and the data.
+fn image<'a>(
+    data: &'a [u8],
+    encoding: &str,
+    bytes_per_pixel: usize,
+) -> Result<(i64, usize, usize, &'a [u8]), DatasetError> {
+    let mut r = CdrReader::new(data)?;
+    let (stamp_ns, _) = header(&mut r)?;
+    let height = r.u32()? as usize;
+    let width = r.u32()? as usize;
+    let got_encoding = r.string()?;
+    let big_endian = r.u8()?;
+    let step = r.u32()? as usize;
+    let bytes = r.bytes()?;
+    if got_encoding != encoding
+        || big_endian != 0
+        || step != width * bytes_per_pixel
+        || bytes.len() != step * height
+    {
+        return Err(DatasetError::decode(format!(
+            "{got_encoding} image of {width} x {height} pixels, step {step} (big-endian: \
+             {big_endian}) in {} bytes, expected a packed little-endian {encoding} image",
+            bytes.len()
+        )));
+    }
+    Ok((stamp_ns, width, height, bytes))
+}
+
+/// `/camera/color/image_raw`.
+pub(crate) fn color_image(data: &[u8]) -> Result<Plane<u8>, DatasetError> {
+    let (stamp_ns, width, height, bytes) = image(data, RGB8, 3)?;
+    Ok(Plane {
+        stamp_ns,
+        width,
+        height,
+        pixels: bytes.to_vec(),
+    })
+}
+
+/// `/camera/depth/image_raw`: every value's bits as stored.
+pub(crate) fn depth_image(data: &[u8]) -> Result<Plane<f32>, DatasetError> {
+    let (stamp_ns, width, height, bytes) = image(data, DEPTH_32FC1, 4)?;
+    Ok(Plane {
+        stamp_ns,
+        width,
+        height,
+        pixels: bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect(),
+    })
+}
+
+/// `/camera/color/camera_info` completes the frame whose colour and depth images came just
+/// before it; the intrinsics are its `k`.
+pub(crate) fn camera_info(
+    data: &[u8],
+    color: Plane<u8>,
+    depth: Plane<f32>,
+) -> Result<RgbdFrame, DatasetError> {
+    let mut r = CdrReader::new(data)?;
+    let (stamp_ns, _) = header(&mut r)?;
+    let height = r.u32()? as usize;
+    let width = r.u32()? as usize;
+    let _distortion_model = r.string()?;
+    let d = r.seq_len()?;
+    skip_f64(&mut r, d)?;
+    let mut k = [0.0; 9];
+    for v in &mut k {
+        *v = r.f64()?;
+    }
+    let sizes = [
+        (color.stamp_ns, color.width, color.height),
+        (depth.stamp_ns, depth.width, depth.height),
+    ];
+    if sizes.iter().any(|&s| s != (stamp_ns, width, height)) {
+        return Err(DatasetError::decode(format!(
+            "camera info of {width} x {height} pixels stamped {stamp_ns} ns follows a colour \
+             image of {} x {} stamped {} ns and a depth image of {} x {} stamped {} ns",
+            color.width, color.height, color.stamp_ns, depth.width, depth.height, depth.stamp_ns
+        )));
+    }
+    Ok(RgbdFrame {
+        stamp_ns,
+        image: RgbdImage {
+            width,
+            height,
+            rgb: color.pixels,
+            depth_m: depth.pixels,
+            intrinsics: [k[0], k[4], k[2], k[5]],
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::encode;
+
+    fn frame() -> RgbdFrame {
+        RgbdFrame {
+            stamp_ns: 33_333_333,
+            image: RgbdImage {
+                width: 3,
+                height: 2,
+                rgb: (0..18).map(|i| i * 14).collect(),
+                // Invalid depth however a camera may report it, and NaN with a payload.
+                depth_m: vec![
+                    0.0,
+                    -0.0,
+                    f32::from_bits(0x7fc0_1234),
+                    f32::INFINITY,
+                    1.5,
+                    f32::MIN_POSITIVE,
+                ],
+                intrinsics: [457.007_362_157_476_7, 457.1, 1.0 / 3.0, 0.5],
+            },
+        }
+    }
+
+    #[test]
+    fn a_camera_frame_comes_back_bit_for_bit() {
+        let f = frame();
+        let color = color_image(&encode::color_image(&f)).unwrap();
+        let depth = depth_image(&encode::depth_image(&f)).unwrap();
+        let back = camera_info(&encode::camera_info(&f), color, depth).unwrap();
+        let bits = |d: &[f32]| d.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
+        assert_eq!(back.stamp_ns, f.stamp_ns);
+        assert_eq!((back.image.width, back.image.height), (3, 2));
+        assert_eq!(back.image.rgb, f.image.rgb);
+        assert_eq!(bits(&back.image.depth_m), bits(&f.image.depth_m));
+        assert_eq!(
+            back.image.intrinsics.map(f64::to_bits),
+            f.image.intrinsics.map(f64::to_bits)
+        );
+    }
+
+    #[test]
+    fn a_frame_of_mismatched_parts_is_refused() {
+        let f = frame();
+        let mut later = frame();
+        later.stamp_ns += 1;
+        let color = color_image(&encode::color_image(&f)).unwrap();
+        let depth = depth_image(&encode::depth_image(&later)).unwrap();
+        let err = camera_info(&encode::camera_info(&f), color, depth).unwrap_err();
+        assert!(err.to_string().contains("33333334"), "{err}");
+        // A depth image is not a colour image.
+        let err = color_image(&encode::depth_image(&f)).unwrap_err();
+        assert!(err.to_string().contains("32FC1"), "{err}");
+    }
 }

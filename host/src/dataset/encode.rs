@@ -1,11 +1,11 @@
 //! Simulator messages to ROS 2 messages in CDR (field order as in [`super::schemas`]).
 
 use nalgebra::{Isometry3, Vector3};
-use sim::sensors::{GroundTruth, ImuSample, LaserScan, LidarScan, WheelOdometry};
+use sim::sensors::{GroundTruth, ImuSample, LaserScan, LidarScan, RgbdFrame, WheelOdometry};
 
 use super::EPOCH_NS;
 use super::cdr::CdrWriter;
-use super::topics::{BASE_FRAME, IMU_FRAME, LIDAR_FRAME, MAP_FRAME, ODOM_FRAME};
+use super::topics::{BASE_FRAME, CAMERA_FRAME, IMU_FRAME, LIDAR_FRAME, MAP_FRAME, ODOM_FRAME};
 
 /// `sensor_msgs/PointField` datatypes.
 pub(crate) const UINT16: u8 = 4;
@@ -22,6 +22,13 @@ pub(crate) const POINT_FIELDS: [(&str, u32, u8); 6] = [
     ("time", 20, FLOAT32),
 ];
 pub(crate) const POINT_STEP: usize = 24;
+
+/// `sensor_msgs/Image` encodings (REP 118 for depth): colour and depth in metres.
+pub(crate) const RGB8: &str = "rgb8";
+pub(crate) const DEPTH_32FC1: &str = "32FC1";
+/// The camera's lens model: `plumb_bob` with all five coefficients zero (a rectified image).
+pub(crate) const DISTORTION_MODEL: &str = "plumb_bob";
+pub(crate) const DISTORTION: [f64; 5] = [0.0; 5];
 
 /// `std_msgs/Header` with the stamp offset by [`EPOCH_NS`].
 fn header(w: &mut CdrWriter, stamp_ns: i64, frame_id: &str) {
@@ -159,5 +166,75 @@ pub(crate) fn tf_message(stamp_ns: i64, transforms: &[(&str, Isometry3<f64>)]) -
         w.string(child);
         pose(&mut w, base_from_sensor);
     }
+    w.finish()
+}
+
+/// `sensor_msgs/Image` header fields up to the data: rows of `step` bytes, little-endian.
+fn image_header(w: &mut CdrWriter, m: &RgbdFrame, encoding: &str, bytes_per_pixel: usize) {
+    header(w, m.stamp_ns, CAMERA_FRAME);
+    w.u32(m.image.height as u32);
+    w.u32(m.image.width as u32);
+    w.string(encoding);
+    w.u8(0); // is_bigendian
+    w.u32((m.image.width * bytes_per_pixel) as u32);
+}
+
+/// The colour image, `rgb8`.
+pub(crate) fn color_image(m: &RgbdFrame) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(m.image.rgb.len() + 128);
+    image_header(&mut w, m, RGB8, 3);
+    w.bytes(&m.image.rgb);
+    w.finish()
+}
+
+/// The registered depth image, `32FC1` in metres, each value's bits as the camera gave them
+/// (invalid pixels included).
+pub(crate) fn depth_image(m: &RgbdFrame) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(4 * m.image.depth_m.len() + 128);
+    image_header(&mut w, m, DEPTH_32FC1, 4);
+    w.f32_as_bytes(&m.image.depth_m);
+    w.finish()
+}
+
+/// `sensor_msgs/CameraInfo` of a frame: its pinhole as `k` and `p`, no distortion, `r`
+/// identity (a monocular camera), no binning, the full image as region of interest.
+pub(crate) fn camera_info(m: &RgbdFrame) -> Vec<u8> {
+    let [fx, fy, cx, cy] = m.image.intrinsics;
+    let mut w = CdrWriter::with_capacity(512);
+    header(&mut w, m.stamp_ns, CAMERA_FRAME);
+    w.u32(m.image.height as u32);
+    w.u32(m.image.width as u32);
+    w.string(DISTORTION_MODEL);
+    w.seq_len(DISTORTION.len());
+    for v in DISTORTION {
+        w.f64(v);
+    }
+    #[rustfmt::skip]
+    let k = [
+        fx, 0.0, cx,
+        0.0, fy, cy,
+        0.0, 0.0, 1.0,
+    ];
+    #[rustfmt::skip]
+    let r = [
+        1.0, 0.0, 0.0,
+        0.0, 1.0, 0.0,
+        0.0, 0.0, 1.0,
+    ];
+    #[rustfmt::skip]
+    let p = [
+        fx, 0.0, cx, 0.0,
+        0.0, fy, cy, 0.0,
+        0.0, 0.0, 1.0, 0.0,
+    ];
+    for v in k.into_iter().chain(r).chain(p) {
+        w.f64(v);
+    }
+    w.u32(0); // binning_x
+    w.u32(0); // binning_y
+    for _ in 0..4 {
+        w.u32(0); // roi: x_offset, y_offset, height, width (0: the full image)
+    }
+    w.bool(false); // roi.do_rectify
     w.finish()
 }

@@ -9,19 +9,23 @@
 //!
 //! | topic | type | frame | from |
 //! |---|---|---|---|
-//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | `base_link` → `imu_link`, `velodyne`, `laser_front`, `laser_back` | the mounts' `base_from_sensor`, once at t = 0 |
+//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | `base_link` → `imu_link`, `velodyne`, `laser_front`, `laser_back`, `camera_color_optical_frame` | the mounts' `base_from_sensor` (the camera's with the rotation to its optical frame), once at t = 0 |
 //! | `/imu` | `sensor_msgs/msg/Imu` | `imu_link` | [`sim::sensors::ImuSample`]; no orientation (`orientation_covariance[0] = -1`) |
 //! | `/points` | `sensor_msgs/msg/PointCloud2` | `velodyne` | [`sim::sensors::LidarScan`]: x, y, z, intensity (f32), ring (u16), time (f32, s after the stamp), as LIO-SAM reads them |
 //! | `/scan_front`, `/scan_back` | `sensor_msgs/msg/LaserScan` | `laser_front`, `laser_back` | [`sim::sensors::LaserScan`] |
 //! | `/odom` | `nav_msgs/msg/Odometry` | `odom` → `base_link` | [`sim::sensors::WheelOdometry`]: pose `odom_from_base`, twist linear.x and angular.z |
 //! | `/ground_truth` | `geometry_msgs/msg/PoseStamped` | `map` | [`sim::sensors::GroundTruth`]: `world_from_base` |
 //! | `/ground_truth/twist` | `geometry_msgs/msg/TwistStamped` | `map` | the same ground truth's `velocity_in_world` (linear, in `map`) and `omega_in_base` (angular, in `base_link`, as the simulator keeps it) |
+//! | `/camera/color/image_raw` | `sensor_msgs/msg/Image` | `camera_color_optical_frame` | [`sim::sensors::RgbdFrame`]'s colour: `rgb8`, `step = 3 * width` |
+//! | `/camera/depth/image_raw` | `sensor_msgs/msg/Image` | `camera_color_optical_frame` | its depth, registered to the colour image: `32FC1` in metres along the optical axis, `step = 4 * width`; invalid pixels as the camera gives them (0, as the Kinect v2 driver reports them) |
+//! | `/camera/color/camera_info` | `sensor_msgs/msg/CameraInfo` | `camera_color_optical_frame` | its intrinsics: `k`, `p` from `[fx, fy, cx, cy]`, `plumb_bob` with zero `d`, `r` identity; one per frame, for both images |
 //!
 //! Frames follow REP 105 (`map` → `odom` → `base_link`) and REP 103 (x forward, y left, z up).
 //!
 //! Time: every header stamp is the measurement's stamp (a sweep's start) and every MCAP
 //! `log_time` / `publish_time` the moment the message becomes available (a sweep's end,
-//! everything else its stamp), both offset by [`EPOCH_NS`] so that simulated time 0 is
+//! everything else its stamp; a camera frame's three messages follow one another, colour,
+//! depth, camera info), both offset by [`EPOCH_NS`] so that simulated time 0 is
 //! 2023-11-14T22:13:20Z and no stamp is ROS's "zero time". The file holds no wall-clock time
 //! and no compression, so the same configuration and seed give byte-identical files.
 

@@ -12,10 +12,13 @@ use sim::SimConfig;
 use sim::config::Side;
 use sim::sensors::{LaserScan, Message, ScanSide};
 
-use super::topics::{IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic};
+use super::topics::{
+    CAMERA_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
+};
 use super::{DatasetError, EPOCH_NS, encode, schemas};
 
-/// Target size of an MCAP chunk (before any compression; none is used).
+/// Target size of an MCAP chunk (before any compression; none is used). A camera frame
+/// (about 2.1 MB at 640 x 480) fits whole.
 const CHUNK_BYTES: u64 = 4 << 20;
 
 /// rosbag2's QoS for `/tf_static` (reliable, transient local: latched), so `ros2 bag play`
@@ -124,6 +127,11 @@ impl Recorder {
                 LASER_BACK_FRAME,
                 s.scan2d_back.mount_for(Side::Back).base_from_sensor(),
             ),
+            // The images' optical frame (z forward, x right, y down), as the rig gives it.
+            (
+                CAMERA_FRAME,
+                s.camera.mount.base_from_sensor() * sim::camera::camera_from_optical(),
+            ),
         ];
         recorder.put(Topic::TfStatic, 0, &encode::tf_message(0, &mounts))?;
         Ok(recorder)
@@ -179,10 +187,13 @@ impl Recorder {
                 &encode::point_cloud(m),
             ),
             Message::Scan2d(m) => self.scan(m),
-            // `vinebench record` refuses the camera before it starts.
-            Message::Rgbd(_) => Err(DatasetError::decode(
-                "the RGB-D camera cannot be recorded yet",
-            )),
+            // A frame is available whole at its stamp (global shutter); the camera info comes
+            // last and completes it on replay.
+            Message::Rgbd(m) => {
+                self.put(Topic::ColorImage, m.stamp_ns, &encode::color_image(m))?;
+                self.put(Topic::DepthImage, m.stamp_ns, &encode::depth_image(m))?;
+                self.put(Topic::CameraInfo, m.stamp_ns, &encode::camera_info(m))
+            }
         }
     }
 

@@ -11,6 +11,7 @@ use nalgebra::Isometry3;
 use sim::SensorSet;
 use sim::sensors::{Message, ScanSide};
 
+use super::decode::Plane;
 use super::topics::Topic;
 use super::{DatasetError, EPOCH_NS, decode};
 
@@ -28,6 +29,9 @@ pub struct Replay {
     schemas: BTreeMap<u16, String>,
     /// A `/ground_truth` pose waiting for its `/ground_truth/twist`.
     pose: Option<(i64, Isometry3<f64>)>,
+    /// A camera frame's colour and depth images waiting for its camera info.
+    color: Option<Plane<u8>>,
+    depth: Option<Plane<f32>>,
     done: bool,
 }
 
@@ -54,6 +58,8 @@ impl Replay {
             channels: BTreeMap::new(),
             schemas: BTreeMap::new(),
             pose: None,
+            color: None,
+            depth: None,
             done: false,
         })
     }
@@ -81,7 +87,7 @@ impl Replay {
     }
 
     /// Decodes one message of a topic that is replayed; `None` for the first half of a
-    /// ground truth (its pose).
+    /// ground truth (its pose) and the images of a camera frame before its camera info.
     fn decode(
         &mut self,
         topic: Topic,
@@ -105,6 +111,32 @@ impl Replay {
                     .take()
                     .ok_or_else(|| DatasetError::decode("a twist without the pose before it"))?;
                 Message::GroundTruth(decode::twist_stamped(data, pose)?)
+            }
+            Topic::ColorImage => {
+                if self.color.is_some() {
+                    return Err(DatasetError::decode(
+                        "a colour image follows one without its camera info",
+                    ));
+                }
+                self.color = Some(decode::color_image(data)?);
+                return Ok(None);
+            }
+            Topic::DepthImage => {
+                if self.color.is_none() || self.depth.is_some() {
+                    return Err(DatasetError::decode(
+                        "a depth image without a colour image just before it",
+                    ));
+                }
+                self.depth = Some(decode::depth_image(data)?);
+                return Ok(None);
+            }
+            Topic::CameraInfo => {
+                let (Some(color), Some(depth)) = (self.color.take(), self.depth.take()) else {
+                    return Err(DatasetError::decode(
+                        "a camera info without the colour and depth images before it",
+                    ));
+                };
+                Message::Rgbd(decode::camera_info(data, color, depth)?)
             }
             Topic::TfStatic => return Ok(None),
         }))

@@ -114,6 +114,30 @@ const DEFINITIONS: &[(&str, &str, &[&str])] = &[
         &["std_msgs/Header"],
     ),
     (
+        "sensor_msgs/Image",
+        "std_msgs/Header header\n\
+         uint32 height\nuint32 width\n\
+         string encoding\n\
+         uint8 is_bigendian\nuint32 step\n\
+         uint8[] data\n",
+        &["std_msgs/Header"],
+    ),
+    (
+        "sensor_msgs/RegionOfInterest",
+        "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n",
+        &[],
+    ),
+    (
+        "sensor_msgs/CameraInfo",
+        "std_msgs/Header header\n\
+         uint32 height\nuint32 width\n\
+         string distortion_model\n\
+         float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\n\
+         uint32 binning_x\nuint32 binning_y\n\
+         RegionOfInterest roi\n",
+        &["std_msgs/Header", "sensor_msgs/RegionOfInterest"],
+    ),
+    (
         "nav_msgs/Odometry",
         "std_msgs/Header header\nstring child_frame_id\n\
          geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n",
@@ -184,5 +208,22 @@ mod tests {
             );
         }
         assert!(s.starts_with("std_msgs/Header header\n"), "{s}");
+    }
+
+    #[test]
+    fn camera_info_carries_its_region_of_interest() {
+        let s = schema("sensor_msgs/msg/CameraInfo");
+        assert!(s.starts_with("std_msgs/Header header\n"), "{s}");
+        assert!(
+            s.contains("\nfloat64[9] k\n") && s.contains("\nfloat64[12] p\n"),
+            "{s}"
+        );
+        for dep in ["sensor_msgs/RegionOfInterest", "builtin_interfaces/Time"] {
+            assert_eq!(
+                s.matches(&format!("\nMSG: {dep}\n")).count(),
+                1,
+                "{dep} in\n{s}"
+            );
+        }
     }
 }

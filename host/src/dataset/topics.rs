@@ -9,6 +9,10 @@ pub const LASER_BACK_FRAME: &str = "laser_back";
 pub const BASE_FRAME: &str = "base_link";
 pub const ODOM_FRAME: &str = "odom";
 pub const MAP_FRAME: &str = "map";
+/// Optical frame (z forward, x right, y down; REP 103) of the RGB-D camera's colour image,
+/// which the registered depth image shares, named as the RealSense and Kinect ROS drivers
+/// name theirs.
+pub const CAMERA_FRAME: &str = "camera_color_optical_frame";
 
 /// A topic of a recording.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -21,10 +25,13 @@ pub enum Topic {
     ScanFront,
     ScanBack,
     Points,
+    ColorImage,
+    DepthImage,
+    CameraInfo,
 }
 
 impl Topic {
-    pub const ALL: [Topic; 8] = [
+    pub const ALL: [Topic; 11] = [
         Topic::TfStatic,
         Topic::GroundTruth,
         Topic::GroundTruthTwist,
@@ -33,6 +40,9 @@ impl Topic {
         Topic::ScanFront,
         Topic::ScanBack,
         Topic::Points,
+        Topic::ColorImage,
+        Topic::DepthImage,
+        Topic::CameraInfo,
     ];
 
     pub fn name(self) -> &'static str {
@@ -45,6 +55,9 @@ impl Topic {
             Topic::ScanFront => "/scan_front",
             Topic::ScanBack => "/scan_back",
             Topic::Points => "/points",
+            Topic::ColorImage => "/camera/color/image_raw",
+            Topic::DepthImage => "/camera/depth/image_raw",
+            Topic::CameraInfo => "/camera/color/camera_info",
         }
     }
 
@@ -58,6 +71,8 @@ impl Topic {
             Topic::Odom => "nav_msgs/msg/Odometry",
             Topic::ScanFront | Topic::ScanBack => "sensor_msgs/msg/LaserScan",
             Topic::Points => "sensor_msgs/msg/PointCloud2",
+            Topic::ColorImage | Topic::DepthImage => "sensor_msgs/msg/Image",
+            Topic::CameraInfo => "sensor_msgs/msg/CameraInfo",
         }
     }
 
@@ -74,6 +89,7 @@ impl Topic {
             Topic::Odom => sensors.wheel_odometry,
             Topic::ScanFront | Topic::ScanBack => sensors.scan2d,
             Topic::Points => sensors.lidar,
+            Topic::ColorImage | Topic::DepthImage | Topic::CameraInfo => sensors.rgbd,
         }
     }
 }
