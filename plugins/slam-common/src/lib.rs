@@ -2,6 +2,16 @@
 //! integrates its IMU and keeps its maps the same way.
 //!
 //! - [`backend`]: a small factor-graph interface (variables, factors, update, estimate) and
-//!   its implementation on factrs, chosen by name from a plugin's configuration.
+//!   its implementation on factrs, chosen by name from a plugin's configuration;
+//! - [`imu`]: on-manifold IMU preintegration and state prediction;
+//! - [`kdtree`], [`voxel`]: nearest neighbours and voxel-grid downsampling for maps;
+//! - [`geometry`], [`lsq`], [`icp`]: lines and planes from neighbours, Gauss–Newton on SE(3)
+//!   with degeneracy handling, point-to-plane ICP.
 
 pub mod backend;
+pub mod geometry;
+pub mod icp;
+pub mod imu;
+pub mod kdtree;
+pub mod lsq;
+pub mod voxel;

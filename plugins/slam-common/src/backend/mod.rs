@@ -9,6 +9,15 @@
 use nalgebra::{Isometry3, Vector3, Vector6};
 use serde::Deserialize;
 
+mod convert;
+mod entry;
+mod factrs;
+mod imu;
+mod scope;
+mod solve;
+
+pub use factrs::FactrsBackend;
+
 /// Which kind of variable a key names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Var {
@@ -54,7 +63,8 @@ pub struct ImuNoise {
 
 impl Default for ImuNoise {
     /// LIO-SAM's defaults (`imuAccNoise`, `imuGyrNoise`, `imuAccBiasN`, `imuGyrBiasN`,
-    /// `imuGravity` in its params.yaml).
+    /// `imuGravity` in its params.yaml), digits as published.
+    #[allow(clippy::excessive_precision)]
     fn default() -> Self {
         Self {
             accel_noise_density: 3.9939570888238808e-03,
@@ -144,7 +154,9 @@ pub struct UpdateReport {
     /// Factors it linearised.
     pub factors: usize,
     pub iterations: usize,
-    /// Sum of squared whitened residuals before and after.
+    /// Sum of squared whitened residuals of the factors in scope, before and after (for a
+    /// factor with a robust kernel, twice its kernel's cost instead: what the solver
+    /// minimises).
     pub error_before: f64,
     pub error_after: f64,
 }
@@ -159,6 +171,10 @@ pub enum BackendError {
     Duplicate(Var),
     #[error("solver failed: {0}")]
     Solver(String),
+    /// A value, factor or setting the backend cannot use (a non-positive sigma, a
+    /// non-finite number, an IMU factor without samples, a value of the wrong kind).
+    #[error("invalid input: {0}")]
+    Invalid(String),
 }
 
 /// A factor graph that grows keyframe by keyframe.
@@ -221,7 +237,10 @@ impl Default for BackendConfig {
 /// Builds the backend a configuration names.
 pub fn from_config(config: &BackendConfig) -> Result<Box<dyn Backend>, BackendError> {
     match config.name.as_str() {
-        // "factrs" => Ok(Box::new(factrs::FactrsBackend::new(config))),
+        "factrs" if config.window == 0 => Err(BackendError::Invalid(
+            "backend window must be at least 1 keyframe".to_string(),
+        )),
+        "factrs" => Ok(Box::new(FactrsBackend::new(config))),
         other => Err(BackendError::Unknown(other.to_string())),
     }
 }

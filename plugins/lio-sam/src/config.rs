@@ -1,0 +1,196 @@
+//! The plugin's parameters: every key optional, defaults from LIO-SAM's `params.yaml`
+//! where they apply (names in the doc comments), unknown keys rejected.
+
+use serde::Deserialize;
+use slam_common::backend::{BackendConfig, ImuNoise};
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// Undistort each sweep with IMU-propagated poses (or the constant-velocity model
+    /// without the IMU) at every point's time.
+    pub deskew: bool,
+    /// Use the IMU: prediction, deskewing and preintegration factors. Off = lidar only.
+    pub use_imu: bool,
+    /// Gravity, m/s² (`imuGravity`; ours is the simulator's standard gravity).
+    pub gravity_mps2: f64,
+    /// IMU noise for the preintegration factors. Zero entries are taken from the rig.
+    pub imu: ImuNoiseConfig,
+    pub features: FeatureConfig,
+    pub mapping: MappingConfig,
+    pub loop_closure: LoopConfig,
+    pub backend: BackendConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            deskew: true,
+            use_imu: true,
+            gravity_mps2: 9.80665,
+            imu: ImuNoiseConfig::default(),
+            features: FeatureConfig::default(),
+            mapping: MappingConfig::default(),
+            loop_closure: LoopConfig::default(),
+            backend: BackendConfig::default(),
+        }
+    }
+}
+
+/// IMU noise densities; `None` means "from the rig, or LIO-SAM's default if the rig has
+/// none".
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImuNoiseConfig {
+    pub accel_noise_density: Option<f64>,
+    pub gyro_noise_density: Option<f64>,
+    pub accel_bias_random_walk: Option<f64>,
+    pub gyro_bias_random_walk: Option<f64>,
+}
+
+impl ImuNoiseConfig {
+    /// Resolves the noise: configured value, else the rig's (if positive), else LIO-SAM's.
+    pub fn resolve(&self, rig_noise: &std::collections::BTreeMap<String, f64>, gravity_mps2: f64) -> ImuNoise {
+        let default = ImuNoise::default();
+        let pick = |own: Option<f64>, key: &str, fallback: f64| {
+            own.or_else(|| rig_noise.get(key).copied().filter(|v| *v > 0.0)).unwrap_or(fallback)
+        };
+        ImuNoise {
+            accel_noise_density: pick(self.accel_noise_density, "accel_noise_density", default.accel_noise_density),
+            gyro_noise_density: pick(self.gyro_noise_density, "gyro_noise_density", default.gyro_noise_density),
+            accel_bias_random_walk: pick(self.accel_bias_random_walk, "accel_bias_random_walk", default.accel_bias_random_walk),
+            gyro_bias_random_walk: pick(self.gyro_bias_random_walk, "gyro_bias_random_walk", default.gyro_bias_random_walk),
+            gravity_mps2,
+        }
+    }
+}
+
+/// LOAM feature extraction (LIO-SAM's featureExtraction.cpp parameters).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeatureConfig {
+    /// Points closer than this are dropped (`lidarMinRange`).
+    pub min_range_m: f64,
+    /// And farther (`lidarMaxRange`).
+    pub max_range_m: f64,
+    /// Curvature above which a point may be an edge (`edgeThreshold`).
+    pub edge_threshold: f64,
+    /// Curvature below which a point may be planar (`surfThreshold`).
+    pub surf_threshold: f64,
+    /// Each ring is split into this many sectors with their own quotas.
+    pub sectors: usize,
+    /// Edge points per sector.
+    pub edges_per_sector: usize,
+    /// Voxel leaf for the planar points of a scan (`odometrySurfLeafSize`).
+    pub surf_leaf_m: f64,
+}
+
+impl Default for FeatureConfig {
+    fn default() -> Self {
+        Self {
+            min_range_m: 1.0,
+            max_range_m: 1000.0,
+            edge_threshold: 1.0,
+            surf_threshold: 0.1,
+            sectors: 6,
+            edges_per_sector: 20,
+            surf_leaf_m: 0.4,
+        }
+    }
+}
+
+/// Scan-to-map registration and keyframes (mapOptimization.cpp parameters).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MappingConfig {
+    /// Minimum edge and planar points for a scan to be registered
+    /// (`edgeFeatureMinValidNum`, `surfFeatureMinValidNum`).
+    pub min_edge_points: usize,
+    pub min_surf_points: usize,
+    /// Voxel leaves of the local map (`mappingCornerLeafSize`, `mappingSurfLeafSize`).
+    pub corner_leaf_m: f64,
+    pub surf_leaf_m: f64,
+    /// Keyframes within this radius of the newest make the local map
+    /// (`surroundingKeyframeSearchRadius`), thinned to one per `keyframe_density_m`
+    /// (`surroundingKeyframeDensity`), plus every keyframe of the last `recent_s`.
+    pub local_map_radius_m: f64,
+    pub keyframe_density_m: f64,
+    pub recent_s: f64,
+    /// A new keyframe after this much motion (`surroundingkeyframeAddingDistThreshold`,
+    /// `surroundingkeyframeAddingAngleThreshold`).
+    pub keyframe_distance_m: f64,
+    pub keyframe_angle_rad: f64,
+    /// Gauss–Newton iterations per scan (LIO-SAM: 30) and the eigenvalue below which a
+    /// direction counts as degenerate (LIO-SAM: 100).
+    pub max_iterations: usize,
+    pub degeneracy_eigenvalue: f64,
+    /// Neighbours searched per feature point, and how far the farthest may be (m²).
+    pub neighbours: usize,
+    pub max_neighbour_distance_sq: f64,
+    /// Correspondences are searched again once the sweep has moved this much (m, with
+    /// rotations counted at 10 m) since the last search; 0 searches at every iteration as
+    /// LIO-SAM does.
+    pub research_distance_m: f64,
+    /// Standard deviations of the lidar-odometry factor: rotation (rad), translation (m)
+    /// (`odometryNoise` variances 1e-6 and 1e-4).
+    pub odometry_sigma_rad: f64,
+    pub odometry_sigma_m: f64,
+}
+
+impl Default for MappingConfig {
+    fn default() -> Self {
+        Self {
+            min_edge_points: 10,
+            min_surf_points: 100,
+            corner_leaf_m: 0.2,
+            surf_leaf_m: 0.4,
+            local_map_radius_m: 50.0,
+            keyframe_density_m: 2.0,
+            recent_s: 10.0,
+            keyframe_distance_m: 1.0,
+            keyframe_angle_rad: 0.2,
+            max_iterations: 30,
+            degeneracy_eigenvalue: 100.0,
+            neighbours: 5,
+            max_neighbour_distance_sq: 1.0,
+            research_distance_m: 0.02,
+            odometry_sigma_rad: 1e-3,
+            odometry_sigma_m: 1e-2,
+        }
+    }
+}
+
+/// Loop closure (LIO-SAM's `loopClosure*` and `historyKeyframe*` parameters).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LoopConfig {
+    pub enabled: bool,
+    /// Candidates lie within this distance (`historyKeyframeSearchRadius`)...
+    pub search_radius_m: f64,
+    /// ...and are at least this much older (`historyKeyframeSearchTimeDiff`).
+    pub min_age_s: f64,
+    /// Keyframes either side of the candidate that make its submap
+    /// (`historyKeyframeSearchNum`).
+    pub submap_keyframes: usize,
+    /// ICP fitness (mean squared distance, m²) a closure must beat
+    /// (`historyKeyframeFitnessScore`).
+    pub max_fitness: f64,
+    /// Minimum time between two attempts (`loopClosureFrequency` 1 Hz).
+    pub min_interval_s: f64,
+    /// Cauchy kernel scale of loop factors, in standard deviations.
+    pub robust_scale: f64,
+}
+
+impl Default for LoopConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            search_radius_m: 15.0,
+            min_age_s: 30.0,
+            submap_keyframes: 25,
+            max_fitness: 0.3,
+            min_interval_s: 1.0,
+            robust_scale: 1.0,
+        }
+    }
+}
