@@ -47,7 +47,8 @@ pub fn extract(rings: &[Vec<RingPoint>], cfg: &FeatureConfig) -> Features {
         let mut curvature = vec![0.0; n];
         let mut label = vec![Label::Free; n];
         for i in HALF..n - HALF {
-            let diff: f64 = r[i - HALF..=i + HALF].iter().sum::<f64>() - (2 * HALF + 1) as f64 * r[i];
+            let diff: f64 =
+                r[i - HALF..=i + HALF].iter().sum::<f64>() - (2 * HALF + 1) as f64 * r[i];
             curvature[i] = diff * diff;
         }
         mark_unreliable(ring, &r, &mut label);
@@ -82,7 +83,11 @@ pub fn extract(rings: &[Vec<RingPoint>], cfg: &FeatureConfig) -> Features {
                     suppress(ring, &mut label, i);
                 }
             }
-            surfs.extend((start..end).filter(|&i| label[i] != Label::Edge).map(|i| ring[i].p));
+            surfs.extend(
+                (start..end)
+                    .filter(|&i| label[i] != Label::Edge)
+                    .map(|i| ring[i].p),
+            );
         }
     }
     out.surfs = downsample(&surfs, cfg.surf_leaf_m);
@@ -144,15 +149,33 @@ mod tests {
             let dir = Vector3::new(a.cos(), a.sin(), 0.0);
             let t_wall = 5.0 / dir.x;
             let t_other = 3.0 / dir.y.max(1e-3);
-            let t = if dir.y > 0.0 { t_wall.min(t_other) } else { t_wall };
-            ring.push(RingPoint { p: dir * t, range: t, column: c });
+            let t = if dir.y > 0.0 {
+                t_wall.min(t_other)
+            } else {
+                t_wall
+            };
+            ring.push(RingPoint {
+                p: dir * t,
+                range: t,
+                column: c,
+            });
         }
-        let f = extract(&[ring], &FeatureConfig { surf_leaf_m: 0.0, ..FeatureConfig::default() });
+        let f = extract(
+            &[ring],
+            &FeatureConfig {
+                surf_leaf_m: 0.0,
+                ..FeatureConfig::default()
+            },
+        );
         assert!(!f.edges.is_empty(), "the corner must give an edge");
         for e in &f.edges {
             let near_corner = (e - Vector3::new(5.0, 3.0, 0.0)).norm() < 0.3;
             assert!(near_corner, "edge {e:?} is not at the corner (5, 3)");
         }
-        assert!(f.surfs.len() > 150, "the walls are planar: {} points", f.surfs.len());
+        assert!(
+            f.surfs.len() > 150,
+            "the walls are planar: {} points",
+            f.surfs.len()
+        );
     }
 }

@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::backend::{
-    self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample, Robust, Scope, Value, Var,
+    self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
+    Robust, Scope, Value, Var,
 };
 
 /// How long one update took, for the flat-cost check.
@@ -31,11 +32,18 @@ pub struct KeyframeGraph {
 
 impl KeyframeGraph {
     /// `imu_noise` None builds a lidar-only graph.
-    pub fn new(cfg: &BackendConfig, imu_noise: Option<ImuNoise>, sigma_rad: f64, sigma_m: f64) -> Result<Self, BackendError> {
+    pub fn new(
+        cfg: &BackendConfig,
+        imu_noise: Option<ImuNoise>,
+        sigma_rad: f64,
+        sigma_m: f64,
+    ) -> Result<Self, BackendError> {
         Ok(Self {
             backend: backend::from_config(cfg)?,
             imu_noise,
-            odometry_sigmas: Vector6::new(sigma_rad, sigma_rad, sigma_rad, sigma_m, sigma_m, sigma_m),
+            odometry_sigmas: Vector6::new(
+                sigma_rad, sigma_rad, sigma_rad, sigma_m, sigma_m, sigma_m,
+            ),
             registered: Vec::new(),
             timings: Vec::new(),
         })
@@ -69,19 +77,44 @@ impl KeyframeGraph {
         self.backend.insert(Var::Pose(k), Value::Pose(initial))?;
         if k == 0 {
             let tight = Vector6::repeat(1e-3);
-            self.backend.add(Factor::PosePrior { key: 0, world_from_body: registered, sigmas: tight })?;
+            self.backend.add(Factor::PosePrior {
+                key: 0,
+                world_from_body: registered,
+                sigmas: tight,
+            })?;
         } else {
             let from_from_to = self.registered[k as usize - 1].inverse() * registered;
-            self.backend.add(Factor::Between { from: k - 1, to: k, from_from_to, sigmas: self.odometry_sigmas, robust: Robust::None })?;
+            self.backend.add(Factor::Between {
+                from: k - 1,
+                to: k,
+                from_from_to,
+                sigmas: self.odometry_sigmas,
+                robust: Robust::None,
+            })?;
         }
         if let Some(noise) = self.imu_noise {
-            self.backend.insert(Var::Velocity(k), Value::Velocity(velocity_mps))?;
+            self.backend
+                .insert(Var::Velocity(k), Value::Velocity(velocity_mps))?;
             self.backend.insert(Var::Bias(k), Value::Bias(bias))?;
             if k == 0 {
-                self.backend.add(Factor::VelocityPrior { key: 0, velocity_mps, sigma_mps: 1.0 })?;
-                self.backend.add(Factor::BiasPrior { key: 0, bias, sigma_accel: 0.1, sigma_gyro: 0.01 })?;
+                self.backend.add(Factor::VelocityPrior {
+                    key: 0,
+                    velocity_mps,
+                    sigma_mps: 1.0,
+                })?;
+                self.backend.add(Factor::BiasPrior {
+                    key: 0,
+                    bias,
+                    sigma_accel: 0.1,
+                    sigma_gyro: 0.01,
+                })?;
             } else {
-                self.backend.add(Factor::Imu { from: k - 1, to: k, samples, noise })?;
+                self.backend.add(Factor::Imu {
+                    from: k - 1,
+                    to: k,
+                    samples,
+                    noise,
+                })?;
             }
         }
         self.registered.push(registered);
@@ -90,7 +123,14 @@ impl KeyframeGraph {
 
     /// Adds a loop-closure factor `older_from_newer` with isotropic sigmas and a Cauchy
     /// kernel, and optimises everything.
-    pub fn add_loop(&mut self, older: usize, newer: usize, older_from_newer: Isometry3<f64>, sigma: f64, robust_scale: f64) -> Result<FactorId, BackendError> {
+    pub fn add_loop(
+        &mut self,
+        older: usize,
+        newer: usize,
+        older_from_newer: Isometry3<f64>,
+        sigma: f64,
+        robust_scale: f64,
+    ) -> Result<FactorId, BackendError> {
         let id = self.backend.add(Factor::Between {
             from: older as u64,
             to: newer as u64,
@@ -105,7 +145,11 @@ impl KeyframeGraph {
     fn update(&mut self, scope: Scope) -> Result<(), BackendError> {
         let start = Instant::now();
         self.backend.update(scope)?;
-        self.timings.push(UpdateTiming { keyframes: self.len(), seconds: start.elapsed().as_secs_f64(), full: scope == Scope::Full });
+        self.timings.push(UpdateTiming {
+            keyframes: self.len(),
+            seconds: start.elapsed().as_secs_f64(),
+            full: scope == Scope::Full,
+        });
         Ok(())
     }
 

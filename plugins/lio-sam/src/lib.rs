@@ -4,7 +4,8 @@
 //! system figure:
 //!
 //! 1. IMU preintegration predicts the motion through the sweep ([`motion`]);
-//! 2. every point is deskewed to the sweep's start with the pose at its own time;
+//! 2. every point is deskewed to the sweep's start with the pose at its own time
+//!    ([`deskew`]);
 //! 3. edge and planar features are extracted by curvature along the rings ([`features`]);
 //! 4. the features are registered to a local map of recent keyframes ([`registration`],
 //!    [`local_map`]);
@@ -18,6 +19,7 @@
 //! events. Parameters: [`config::Config`], LIO-SAM's defaults where they apply.
 
 pub mod config;
+pub mod deskew;
 pub mod features;
 pub mod graph;
 pub mod local_map;

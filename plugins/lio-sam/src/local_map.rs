@@ -29,7 +29,9 @@ pub struct MapKeyframe<'a> {
 impl LocalMap {
     /// Builds the map around the last of `keyframes`.
     pub fn build(keyframes: &[MapKeyframe<'_>], cfg: &MappingConfig) -> Self {
-        let Some(newest) = keyframes.last() else { return Self::default() };
+        let Some(newest) = keyframes.last() else {
+            return Self::default();
+        };
         let centre = newest.world_from_lidar.translation.vector;
         // Thin the nearby keyframes to one per `keyframe_density_m` voxel (the newest in each).
         let inv = 1.0 / cfg.keyframe_density_m.max(1e-3);
@@ -40,7 +42,14 @@ impl LocalMap {
             if recent {
                 chosen.push(([i64::MAX, i64::MAX, i as i64], i));
             } else if (p - centre).norm() <= cfg.local_map_radius_m {
-                chosen.push(([(p.x * inv).floor() as i64, (p.y * inv).floor() as i64, (p.z * inv).floor() as i64], i));
+                chosen.push((
+                    [
+                        (p.x * inv).floor() as i64,
+                        (p.y * inv).floor() as i64,
+                        (p.z * inv).floor() as i64,
+                    ],
+                    i,
+                ));
             }
         }
         chosen.sort_unstable();

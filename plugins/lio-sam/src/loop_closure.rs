@@ -42,7 +42,12 @@ pub struct LoopMatch {
 
 /// Registers the newest keyframe to the candidate's submap. Err(fitness) when ICP fails or
 /// fits worse than the threshold.
-pub fn verify(keyframes: &[LoopKeyframe<'_>], older: usize, cfg: &LoopConfig, leaf_m: f64) -> Result<LoopMatch, f64> {
+pub fn verify(
+    keyframes: &[LoopKeyframe<'_>],
+    older: usize,
+    cfg: &LoopConfig,
+    leaf_m: f64,
+) -> Result<LoopMatch, f64> {
     let newest = keyframes.last().ok_or(f64::INFINITY)?;
     let min_age_ns = (cfg.min_age_s * 1e9) as i64;
     let lo = older.saturating_sub(cfg.submap_keyframes);
@@ -53,11 +58,29 @@ pub fn verify(keyframes: &[LoopKeyframe<'_>], older: usize, cfg: &LoopConfig, le
             continue;
         }
         let to_world = |p: &Vector3<f64>| (k.world_from_lidar * Point3::from(*p)).coords;
-        target.extend(k.features.edges.iter().chain(&k.features.surfs).map(to_world));
+        target.extend(
+            k.features
+                .edges
+                .iter()
+                .chain(&k.features.surfs)
+                .map(to_world),
+        );
     }
     let target = IcpTarget::new(downsample(&target, leaf_m), 5, 0.1);
-    let source: Vec<_> = newest.features.edges.iter().chain(&newest.features.surfs).copied().collect();
-    let result = icp(&source, &target, &newest.world_from_lidar, &IcpConfig::default()).ok_or(f64::INFINITY)?;
+    let source: Vec<_> = newest
+        .features
+        .edges
+        .iter()
+        .chain(&newest.features.surfs)
+        .copied()
+        .collect();
+    let result = icp(
+        &source,
+        &target,
+        &newest.world_from_lidar,
+        &IcpConfig::default(),
+    )
+    .ok_or(f64::INFINITY)?;
     if result.fitness > cfg.max_fitness {
         return Err(result.fitness);
     }

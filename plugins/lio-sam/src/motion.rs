@@ -77,7 +77,10 @@ impl ImuQueue {
     pub fn samples(&self, t0_ns: i64, t1_ns: i64) -> Vec<(i64, ImuSample)> {
         let mut out = Vec::new();
         for (i, m) in self.queue.iter().enumerate() {
-            let next = self.queue.get(i + 1).map_or(t1_ns, |n| n.stamp_ns.min(t1_ns));
+            let next = self
+                .queue
+                .get(i + 1)
+                .map_or(t1_ns, |n| n.stamp_ns.min(t1_ns));
             let start = m.stamp_ns.max(t0_ns);
             if next <= start || m.stamp_ns >= t1_ns {
                 continue;
@@ -97,7 +100,11 @@ impl ImuQueue {
     /// The mean specific force over the first messages: gravity, when at rest.
     pub fn mean_accel(&self) -> Option<Vector3<f64>> {
         (!self.queue.is_empty()).then(|| {
-            self.queue.iter().map(|m| Vector3::from(m.accel_mps2)).sum::<Vector3<f64>>() / self.queue.len() as f64
+            self.queue
+                .iter()
+                .map(|m| Vector3::from(m.accel_mps2))
+                .sum::<Vector3<f64>>()
+                / self.queue.len() as f64
         })
     }
 }
@@ -130,20 +137,30 @@ mod tests {
     #[test]
     fn interpolation_is_exact_at_the_samples_and_extrapolates() {
         let a = Isometry3::identity();
-        let b = Isometry3::from_parts(Translation3::new(1.0, 0.0, 0.0), UnitQuaternion::from_euler_angles(0.0, 0.0, 0.2));
+        let b = Isometry3::from_parts(
+            Translation3::new(1.0, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.2),
+        );
         let m = Motion::new(vec![(0, a), (100, b)]);
         assert_eq!(m.at(0), Some(a));
         let end = m.at(100).expect("two samples");
         assert!((end.inverse() * b).translation.vector.norm() < 1e-12);
         let beyond = m.at(200).expect("extrapolated");
-        assert!((beyond.rotation.euler_angles().2 - 0.4).abs() < 1e-12, "constant rate beyond the end");
+        assert!(
+            (beyond.rotation.euler_angles().2 - 0.4).abs() < 1e-12,
+            "constant rate beyond the end"
+        );
     }
 
     #[test]
     fn imu_samples_are_clipped_to_the_interval() {
         let mut q = ImuQueue::default();
         for k in 0..10 {
-            q.push(Imu { stamp_ns: k * 5_000_000, accel_mps2: [0.0, 0.0, 9.8], gyro_rps: [0.0; 3] });
+            q.push(Imu {
+                stamp_ns: k * 5_000_000,
+                accel_mps2: [0.0, 0.0, 9.8],
+                gyro_rps: [0.0; 3],
+            });
         }
         let s = q.samples(7_000_000, 21_000_000);
         let total: f64 = s.iter().map(|(_, s)| s.dt_s).sum();

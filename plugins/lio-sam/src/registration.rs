@@ -27,7 +27,12 @@ pub struct Registration {
 
 /// Refines `initial` (`world_from_lidar` at the sweep's start). None when the sweep or the
 /// map has too few features to register.
-pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, cfg: &MappingConfig) -> Option<Registration> {
+pub fn register(
+    features: &Features,
+    map: &LocalMap,
+    initial: &Isometry3<f64>,
+    cfg: &MappingConfig,
+) -> Option<Registration> {
     if features.edges.len() < cfg.min_edge_points
         || features.surfs.len() < cfg.min_surf_points
         || map.corners.len() < cfg.min_edge_points
@@ -41,22 +46,33 @@ pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, c
     let mut lines: Vec<Option<Line>> = vec![None; features.edges.len()];
     let mut planes: Vec<Option<Plane>> = vec![None; features.surfs.len()];
     let mut searched_at: Option<Isometry3<f64>> = None;
-    let mut result = Registration { world_from_lidar: pose, iterations: 0, edge_matches: 0, surf_matches: 0, degenerate_directions: 0 };
+    let mut result = Registration {
+        world_from_lidar: pose,
+        iterations: 0,
+        edge_matches: 0,
+        surf_matches: 0,
+        degenerate_directions: 0,
+    };
     for iteration in 1..=cfg.max_iterations {
         // Lines and planes are local: search again only once the sweep has moved enough
         // since the last search to reach other map points.
         let moved = searched_at.is_none_or(|at| {
             let d = at.inverse() * pose;
-            d.translation.vector.norm() + d.rotation.angle() * RESEARCH_LEVER_M > cfg.research_distance_m
+            d.translation.vector.norm() + d.rotation.angle() * RESEARCH_LEVER_M
+                > cfg.research_distance_m
         });
         if moved {
             for (p, line) in features.edges.iter().zip(&mut lines) {
                 let q = (pose * Point3::from(*p)).coords;
-                *line = neighbours(&map.corners, &q, cfg, &mut nb, &mut patch).then(|| fit_line(&patch, 3.0)).flatten();
+                *line = neighbours(&map.corners, &q, cfg, &mut nb, &mut patch)
+                    .then(|| fit_line(&patch, 3.0))
+                    .flatten();
             }
             for (p, plane) in features.surfs.iter().zip(&mut planes) {
                 let q = (pose * Point3::from(*p)).coords;
-                *plane = neighbours(&map.surfs, &q, cfg, &mut nb, &mut patch).then(|| fit_plane(&patch, 0.2)).flatten();
+                *plane = neighbours(&map.surfs, &q, cfg, &mut nb, &mut patch)
+                    .then(|| fit_plane(&patch, 0.2))
+                    .flatten();
             }
             searched_at = Some(pose);
         }
@@ -68,7 +84,7 @@ pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, c
             let (r, g) = line.residual(&q);
             let s = 1.0 - 0.9 * r;
             if s > 0.1 {
-                ne.add(&q, &g, r, s * s);
+                ne.add(p, &(pose.rotation.inverse() * g), r, s * s);
                 edge_matches += 1;
             }
         }
@@ -79,7 +95,7 @@ pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, c
             let r = plane.distance(&q);
             let s = 1.0 - 0.9 * r.abs() / p.norm().sqrt();
             if s > 0.1 {
-                ne.add(&q, &plane.normal, r, s * s);
+                ne.add(p, &(pose.rotation.inverse() * plane.normal), r, s * s);
                 surf_matches += 1;
             }
         }
@@ -88,7 +104,13 @@ pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, c
         }
         let step = ne.solve(cfg.degeneracy_eigenvalue)?;
         pose = apply(&step.delta, &pose);
-        result = Registration { world_from_lidar: pose, iterations: iteration, edge_matches, surf_matches, degenerate_directions: step.degenerate_directions };
+        result = Registration {
+            world_from_lidar: pose,
+            iterations: iteration,
+            edge_matches,
+            surf_matches,
+            degenerate_directions: step.degenerate_directions,
+        };
         // LIO-SAM stops below 0.05° and 0.05 cm.
         if converged(&step.delta, 0.05_f64.to_radians(), 5e-4) {
             break;
@@ -102,7 +124,13 @@ pub fn register(features: &Features, map: &LocalMap, initial: &Isometry3<f64>, c
 const RESEARCH_LEVER_M: f64 = 10.0;
 
 /// The `cfg.neighbours` nearest map points of `q`, if the farthest is close enough.
-fn neighbours(tree: &KdTree, q: &Vector3<f64>, cfg: &MappingConfig, nb: &mut Vec<Neighbour>, patch: &mut Vec<Vector3<f64>>) -> bool {
+fn neighbours(
+    tree: &KdTree,
+    q: &Vector3<f64>,
+    cfg: &MappingConfig,
+    nb: &mut Vec<Neighbour>,
+    patch: &mut Vec<Vector3<f64>>,
+) -> bool {
     tree.nearest(q, cfg.neighbours, cfg.max_neighbour_distance_sq, nb);
     if nb.len() < cfg.neighbours {
         return false;

@@ -4,14 +4,16 @@ use std::fmt::Write as _;
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem,
+    Event, EventKind, Imu, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind,
+    SlamOutput, SlamSystem,
 };
 use slam_common::backend::ImuBias;
 use slam_common::imu::NavState;
 use slam_common::voxel::downsample;
 
 use crate::config::Config;
-use crate::features::{Features, RingPoint, extract};
+use crate::deskew::{SweepLayout, rings};
+use crate::features::{Features, extract};
 use crate::graph::KeyframeGraph;
 use crate::local_map::{LocalMap, MapKeyframe};
 use crate::loop_closure::{LoopKeyframe, candidate, verify};
@@ -42,8 +44,7 @@ pub struct LioSam {
     imu_from_lidar: Isometry3<f64>,
     lidar_from_base: Isometry3<f64>,
     /// Sweep duration and columns per sweep, to find a point's column from its time.
-    sweep_ns: i64,
-    columns: f64,
+    layout: SweepLayout,
     imu: ImuQueue,
     /// IMU messages since the newest keyframe, for its preintegration factor.
     kf_imu: ImuQueue,
@@ -66,8 +67,13 @@ impl LioSam {
     /// The per-sweep pipeline; returns `world_from_lidar` at the sweep's start.
     fn process(&mut self, cloud: &PointCloud<'_>) -> Result<Isometry3<f64>, PluginError> {
         let start = cloud.stamp_ns;
-        let motion = self.predict(start, start + self.sweep_ns);
-        let rings = self.deskew(cloud, &motion, start);
+        let motion = self.predict(start, start + self.layout.sweep_ns);
+        let rings = rings(
+            cloud.points,
+            start,
+            self.cfg.deskew.then_some(&motion),
+            &self.layout,
+        );
         let features = extract(&rings, &self.cfg.features);
         let predicted = motion.at(start).unwrap_or_else(Isometry3::identity);
         let world_from_lidar = if self.keyframes.is_empty() {
@@ -96,14 +102,24 @@ impl LioSam {
     /// preintegration from the last state, or constant velocity without the IMU.
     fn predict(&self, start_ns: i64, end_ns: i64) -> Motion {
         let lidar = |poses: Motion, times: &[i64]| {
-            Motion::new(times.iter().filter_map(|t| poses.at(*t).map(|p| (*t, p * self.imu_from_lidar))).collect())
+            Motion::new(
+                times
+                    .iter()
+                    .filter_map(|t| poses.at(*t).map(|p| (*t, p * self.imu_from_lidar)))
+                    .collect(),
+            )
         };
         match (&self.nav, self.cfg.use_imu) {
             (Some((t0, state)), true) => {
                 let samples = self.imu.samples(*t0, end_ns);
                 let (poses, _) = propagate(state, *t0, &samples, &self.bias, self.cfg.gravity_mps2);
                 let mut times: Vec<i64> = vec![*t0, start_ns];
-                times.extend(samples.iter().map(|(t, s)| t + (s.dt_s * 1e9).round() as i64).filter(|t| *t > start_ns));
+                times.extend(
+                    samples
+                        .iter()
+                        .map(|(t, s)| t + (s.dt_s * 1e9).round() as i64)
+                        .filter(|t| *t > start_ns),
+                );
                 times.sort_unstable();
                 times.dedup();
                 lidar(poses, &times)
@@ -111,7 +127,8 @@ impl LioSam {
             (None, true) => {
                 // First sweep: level the world with gravity as the accelerometer sees it.
                 let up = self.imu.mean_accel().unwrap_or(Vector3::z());
-                let world_r_imu = UnitQuaternion::rotation_between(&up, &Vector3::z()).unwrap_or_default();
+                let world_r_imu =
+                    UnitQuaternion::rotation_between(&up, &Vector3::z()).unwrap_or_default();
                 let world_from_imu = Isometry3::from_parts(Vector3::zeros().into(), world_r_imu);
                 Motion::new(vec![(start_ns, world_from_imu * self.imu_from_lidar)])
             }
@@ -123,53 +140,25 @@ impl LioSam {
         }
     }
 
-    /// Points grouped by ring in column order, each moved to the sweep's start.
-    fn deskew(&self, cloud: &PointCloud<'_>, motion: &Motion, start_ns: i64) -> Vec<Vec<RingPoint>> {
-        let rings = cloud.points.iter().map(|p| p.ring as usize + 1).max().unwrap_or(0);
-        let mut out: Vec<Vec<RingPoint>> = vec![Vec::new(); rings];
-        // One relative pose per distinct point time (a column fires all rings at once).
-        let mut cached: Option<(f32, Isometry3<f64>)> = None;
-        let start_pose_inv = motion.at(start_ns).map(|p| p.inverse());
-        for p in cloud.points {
-            let raw = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
-            let range = raw.norm();
-            if !(self.cfg.features.min_range_m..=self.cfg.features.max_range_m).contains(&range) {
-                continue;
-            }
-            let point = if self.cfg.deskew {
-                let rel = match cached {
-                    Some((t, rel)) if t == p.time_s => rel,
-                    _ => {
-                        let t_ns = start_ns + (p.time_s as f64 * 1e9).round() as i64;
-                        let rel = match (&start_pose_inv, motion.at(t_ns)) {
-                            (Some(inv), Some(at)) => inv * at,
-                            _ => Isometry3::identity(),
-                        };
-                        cached = Some((p.time_s, rel));
-                        rel
-                    }
-                };
-                (rel * nalgebra::Point3::from(raw)).coords
-            } else {
-                raw
-            };
-            let column = (p.time_s as f64 / (self.sweep_ns as f64 * 1e-9) * self.columns).round() as i32;
-            out[p.ring as usize].push(RingPoint { p: point, range, column });
-        }
-        out
-    }
-
     /// Carries the IMU state to the registered pose at the sweep's start.
     fn after_registration(&mut self, start_ns: i64, world_from_lidar: &Isometry3<f64>) {
         let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
         let velocity = match &self.nav {
             Some((t0, state)) if self.cfg.use_imu => {
                 let samples = self.imu.samples(*t0, start_ns);
-                propagate(state, *t0, &samples, &self.bias, self.cfg.gravity_mps2).1.velocity_mps
+                propagate(state, *t0, &samples, &self.bias, self.cfg.gravity_mps2)
+                    .1
+                    .velocity_mps
             }
             _ => Vector3::zeros(),
         };
-        self.nav = Some((start_ns, NavState { world_from_imu, velocity_mps: velocity }));
+        self.nav = Some((
+            start_ns,
+            NavState {
+                world_from_imu,
+                velocity_mps: velocity,
+            },
+        ));
         self.imu.discard_before(start_ns);
         self.previous.push((start_ns, *world_from_lidar));
         if self.previous.len() > 2 {
@@ -178,7 +167,9 @@ impl LioSam {
     }
 
     fn is_keyframe(&self, world_from_lidar: &Isometry3<f64>) -> bool {
-        let Some(last) = self.keyframes.last() else { return true };
+        let Some(last) = self.keyframes.last() else {
+            return true;
+        };
         // Both poses from the front end, so that graph corrections do not count as motion.
         let delta = last.registered_world_from_lidar.inverse() * world_from_lidar;
         delta.translation.vector.norm() >= self.cfg.mapping.keyframe_distance_m
@@ -190,7 +181,12 @@ impl LioSam {
     }
 
     /// Adds a keyframe to the graph, looks for a loop, and rebuilds the local map.
-    fn add_keyframe(&mut self, stamp_ns: i64, world_from_lidar: Isometry3<f64>, features: Features) -> Result<(), PluginError> {
+    fn add_keyframe(
+        &mut self,
+        stamp_ns: i64,
+        world_from_lidar: Isometry3<f64>,
+        features: Features,
+    ) -> Result<(), PluginError> {
         let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
         let samples = match self.keyframes.last() {
             Some(prev) if self.cfg.use_imu => self.keyframe_samples(prev.stamp_ns, stamp_ns),
@@ -200,7 +196,11 @@ impl LioSam {
         self.graph
             .add_keyframe(world_from_imu, velocity, self.bias, samples)
             .map_err(|e| PluginError::new(format!("factor graph: {e}")))?;
-        self.keyframes.push(Keyframe { stamp_ns, features, registered_world_from_lidar: world_from_lidar });
+        self.keyframes.push(Keyframe {
+            stamp_ns,
+            features,
+            registered_world_from_lidar: world_from_lidar,
+        });
         if self.cfg.loop_closure.enabled {
             self.close_loop(stamp_ns)?;
         }
@@ -209,7 +209,13 @@ impl LioSam {
         if self.cfg.use_imu {
             let velocity = self.graph.velocity(k).unwrap_or(velocity);
             self.bias = self.graph.bias(k).unwrap_or(self.bias);
-            self.nav = Some((stamp_ns, NavState { world_from_imu: self.graph.pose(k), velocity_mps: velocity }));
+            self.nav = Some((
+                stamp_ns,
+                NavState {
+                    world_from_imu: self.graph.pose(k),
+                    velocity_mps: velocity,
+                },
+            ));
         }
         self.rebuild_map();
         Ok(())
@@ -217,7 +223,11 @@ impl LioSam {
 
     /// IMU samples between two keyframes, kept until both exist.
     fn keyframe_samples(&self, t0_ns: i64, t1_ns: i64) -> Vec<slam_common::backend::ImuSample> {
-        self.kf_imu.samples(t0_ns, t1_ns).into_iter().map(|(_, s)| s).collect()
+        self.kf_imu
+            .samples(t0_ns, t1_ns)
+            .into_iter()
+            .map(|(_, s)| s)
+            .collect()
     }
 
     fn close_loop(&mut self, stamp_ns: i64) -> Result<(), PluginError> {
@@ -236,27 +246,41 @@ impl LioSam {
                 features: &self.keyframes[k].features,
             })
             .collect();
-        let Some(older) = candidate(&views, &cfg) else { return Ok(()) };
+        let Some(older) = candidate(&views, &cfg) else {
+            return Ok(());
+        };
         let verdict = verify(&views, older, &cfg, self.cfg.mapping.surf_leaf_m);
         drop(views);
         self.last_loop_attempt_ns = stamp_ns;
         match verdict {
             Ok(m) => {
-                let imu_older_from_newer = self.imu_from_lidar * m.older_from_newer * self.imu_from_lidar.inverse();
+                let imu_older_from_newer =
+                    self.imu_from_lidar * m.older_from_newer * self.imu_from_lidar.inverse();
                 let sigma = m.fitness.sqrt().max(1e-3);
                 self.graph
                     .add_loop(older, newer, imu_older_from_newer, sigma, cfg.robust_scale)
                     .map_err(|e| PluginError::new(format!("factor graph: {e}")))?;
                 self.looped.push(newer);
                 let mut detail = String::new();
-                let _ = write!(detail, "keyframe {newer} to {older}: ICP fitness {:.4} m²", m.fitness);
-                self.events.push(Event { stamp_ns, kind: EventKind::LoopClosureAccepted, detail });
+                let _ = write!(
+                    detail,
+                    "keyframe {newer} to {older}: ICP fitness {:.4} m²",
+                    m.fitness
+                );
+                self.events.push(Event {
+                    stamp_ns,
+                    kind: EventKind::LoopClosureAccepted,
+                    detail,
+                });
             }
             Err(fitness) => {
                 self.events.push(Event {
                     stamp_ns,
                     kind: EventKind::LoopClosureRejected,
-                    detail: format!("keyframe {newer} to {older}: ICP fitness {fitness:.4} m² above {}", cfg.max_fitness),
+                    detail: format!(
+                        "keyframe {newer} to {older}: ICP fitness {fitness:.4} m² above {}",
+                        cfg.max_fitness
+                    ),
                 });
             }
         }
@@ -288,12 +312,19 @@ impl SlamSystem for LioSam {
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
-        let cfg: Config = toml::from_str(config_toml).map_err(|e| PluginError::new(format!("parameters: {}", e.message())))?;
-        let lidar = rig.first(SensorKind::Lidar).ok_or_else(|| PluginError::new("the rig has no 3D lidar"))?;
-        let imu = rig.first(SensorKind::Imu).ok_or_else(|| PluginError::new("the rig has no IMU"))?;
+        let cfg: Config = toml::from_str(config_toml)
+            .map_err(|e| PluginError::new(format!("parameters: {}", e.message())))?;
+        let lidar = rig
+            .first(SensorKind::Lidar)
+            .ok_or_else(|| PluginError::new("the rig has no 3D lidar"))?;
+        let imu = rig
+            .first(SensorKind::Imu)
+            .ok_or_else(|| PluginError::new("the rig has no IMU"))?;
         let columns = lidar.intrinsics.get("columns").copied().unwrap_or(1800.0);
         if lidar.rate_hz <= 0.0 || columns < 1.0 {
-            return Err(PluginError::new("the lidar's rate and columns must be positive"));
+            return Err(PluginError::new(
+                "the lidar's rate and columns must be positive",
+            ));
         }
         let imu_noise = cfg.imu.resolve(&imu.noise, cfg.gravity_mps2);
         let graph = KeyframeGraph::new(
@@ -308,8 +339,12 @@ impl SlamSystem for LioSam {
         Ok(Self {
             imu_from_lidar: base_from_imu.inverse() * base_from_lidar,
             lidar_from_base: base_from_lidar.inverse(),
-            sweep_ns: (1e9 / lidar.rate_hz).round() as i64,
-            columns,
+            layout: SweepLayout {
+                sweep_ns: (1e9 / lidar.rate_hz).round() as i64,
+                columns,
+                min_range_m: cfg.features.min_range_m,
+                max_range_m: cfg.features.max_range_m,
+            },
             imu: ImuQueue::default(),
             kf_imu: ImuQueue::default(),
             nav: None,
@@ -346,18 +381,41 @@ impl SlamSystem for LioSam {
         let trajectory = self
             .sweeps
             .iter()
-            .map(|s| self.base_pose(s.stamp_ns, &(self.keyframe_world_from_lidar(s.keyframe) * s.keyframe_from_lidar)))
+            .map(|s| {
+                self.base_pose(
+                    s.stamp_ns,
+                    &(self.keyframe_world_from_lidar(s.keyframe) * s.keyframe_from_lidar),
+                )
+            })
             .collect();
         let mut points = Vec::new();
         for k in 0..self.keyframes.len() {
             let pose = self.keyframe_world_from_lidar(k);
             let f = &self.keyframes[k].features;
-            points.extend(f.edges.iter().chain(&f.surfs).map(|p| (pose * nalgebra::Point3::from(*p)).coords));
+            points.extend(
+                f.edges
+                    .iter()
+                    .chain(&f.surfs)
+                    .map(|p| (pose * nalgebra::Point3::from(*p)).coords),
+            );
         }
         let map = downsample(&points, self.cfg.mapping.corner_leaf_m)
             .into_iter()
             .map(|p| [p.x as f32, p.y as f32, p.z as f32])
             .collect();
-        Ok(SlamOutput { trajectory, map: Some(map), grid: None, events: std::mem::take(&mut self.events) })
+        if let Some(path) = &self.cfg.profile_csv {
+            let mut csv = String::from("keyframes,full,seconds\n");
+            for t in &self.graph.timings {
+                let _ = writeln!(csv, "{},{},{:.6}", t.keyframes, u8::from(t.full), t.seconds);
+            }
+            std::fs::write(path, csv)
+                .map_err(|e| PluginError::new(format!("profile_csv {}: {e}", path.display())))?;
+        }
+        Ok(SlamOutput {
+            trajectory,
+            map: Some(map),
+            grid: None,
+            events: std::mem::take(&mut self.events),
+        })
     }
 }

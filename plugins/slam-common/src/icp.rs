@@ -54,7 +54,10 @@ pub struct IcpConfig {
 
 impl Default for IcpConfig {
     fn default() -> Self {
-        Self { max_iterations: 30, max_correspondence_m: 1.0 }
+        Self {
+            max_iterations: 30,
+            max_correspondence_m: 1.0,
+        }
     }
 }
 
@@ -69,7 +72,12 @@ pub struct IcpResult {
 }
 
 /// Refines `initial` (`target_from_source`).
-pub fn icp(source: &[Vector3<f64>], target: &IcpTarget, initial: &Isometry3<f64>, config: &IcpConfig) -> Option<IcpResult> {
+pub fn icp(
+    source: &[Vector3<f64>],
+    target: &IcpTarget,
+    initial: &Isometry3<f64>,
+    config: &IcpConfig,
+) -> Option<IcpResult> {
     if source.len() < 6 || target.is_empty() {
         return None;
     }
@@ -80,10 +88,14 @@ pub fn icp(source: &[Vector3<f64>], target: &IcpTarget, initial: &Isometry3<f64>
         let mut ne = NormalEquations::default();
         for p in source {
             let q = (pose * Point3::from(*p)).coords;
-            let Some(nb) = target.tree.nearest_one(&q, gate_sq) else { continue };
-            let Some(n) = target.normals[nb.index] else { continue };
+            let Some(nb) = target.tree.nearest_one(&q, gate_sq) else {
+                continue;
+            };
+            let Some(n) = target.normals[nb.index] else {
+                continue;
+            };
             let r = n.dot(&(q - target.tree.point(nb.index)));
-            ne.add(&q, &n, r, 1.0);
+            ne.add(p, &(pose.rotation.inverse() * n), r, 1.0);
         }
         let step = ne.solve(1e-6)?;
         pose = apply(&step.delta, &pose);
@@ -101,7 +113,12 @@ pub fn icp(source: &[Vector3<f64>], target: &IcpTarget, initial: &Isometry3<f64>
             inliers += usize::from(nb.distance_sq <= gate_sq);
         }
     }
-    Some(IcpResult { target_from_source: pose, fitness: sum / source.len() as f64, inliers, converged: done })
+    Some(IcpResult {
+        target_from_source: pose,
+        fitness: sum / source.len() as f64,
+        inliers,
+        converged: done,
+    })
 }
 
 #[cfg(test)]
@@ -117,19 +134,53 @@ mod tests {
         for i in 0..40 {
             for j in 0..40 {
                 let (u, v) = (i as f64 * 0.1, j as f64 * 0.1);
-                target.push(Vector3::new(u, v, if u > 2.0 && v > 2.0 { 0.3 } else { 0.0 }));
+                target.push(Vector3::new(
+                    u,
+                    v,
+                    if u > 2.0 && v > 2.0 { 0.3 } else { 0.0 },
+                ));
                 target.push(Vector3::new(0.0, u, v * 0.5));
                 target.push(Vector3::new(u, 0.0, v * 0.5));
             }
         }
-        let truth = Isometry3::from_parts(Translation3::new(0.15, -0.2, 0.05), UnitQuaternion::from_euler_angles(0.0, 0.01, 0.06));
-        let source: Vec<_> = target.iter().step_by(2).map(|p| (truth.inverse() * Point3::from(*p)).coords).collect();
+        let truth = Isometry3::from_parts(
+            Translation3::new(0.15, -0.2, 0.05),
+            UnitQuaternion::from_euler_angles(0.0, 0.01, 0.06),
+        );
+        let source: Vec<_> = target
+            .iter()
+            .step_by(2)
+            .map(|p| (truth.inverse() * Point3::from(*p)).coords)
+            .collect();
         let prepared = IcpTarget::new(target, 5, 0.05);
-        let result = icp(&source, &prepared, &Isometry3::identity(), &IcpConfig::default()).expect("enough points");
+        let result = icp(
+            &source,
+            &prepared,
+            &Isometry3::identity(),
+            &IcpConfig::default(),
+        )
+        .expect("enough points");
         let err = result.target_from_source.inverse() * truth;
-        assert!(err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-3, "error {err:?}");
+        assert!(
+            err.translation.vector.norm() < 1e-3 && err.rotation.angle() < 1e-3,
+            "error {err:?}"
+        );
         assert!(result.fitness < 1e-4, "fitness {}", result.fitness);
-        let start = icp(&source, &prepared, &Isometry3::identity(), &IcpConfig { max_iterations: 0, ..IcpConfig::default() }).expect("scored");
-        assert!(start.fitness > 10.0 * result.fitness, "before {} after {}", start.fitness, result.fitness);
+        let start = icp(
+            &source,
+            &prepared,
+            &Isometry3::identity(),
+            &IcpConfig {
+                max_iterations: 0,
+                ..IcpConfig::default()
+            },
+        )
+        .expect("scored");
+        assert!(
+            start.fitness > 10.0 * result.fitness,
+            "before {} after {}",
+            start.fitness,
+            result.fitness
+        );
     }
 }

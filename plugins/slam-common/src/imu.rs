@@ -108,7 +108,8 @@ pub fn right_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
         return Matrix3::identity() - 0.5 * hat;
     }
     let t2 = theta * theta;
-    Matrix3::identity() - (1.0 - theta.cos()) / t2 * hat + (theta - theta.sin()) / (t2 * theta) * hat * hat
+    Matrix3::identity() - (1.0 - theta.cos()) / t2 * hat
+        + (theta - theta.sin()) / (t2 * theta) * hat * hat
 }
 
 #[cfg(test)]
@@ -124,9 +125,19 @@ mod tests {
         let accel_body = Vector3::new(0.5, 0.0, g); // level: the accelerometer also feels gravity
         let dt = 0.005;
         let n = 400;
-        let true_bias = ImuBias { accel_mps2: Vector3::new(0.02, -0.01, 0.03), gyro_rps: Vector3::new(0.001, -0.002, 0.003) };
-        let sample = |b: &ImuBias| ImuSample { dt_s: dt, accel_mps2: accel_body + b.accel_mps2, gyro_rps: Vector3::new(0.0, 0.0, omega) + b.gyro_rps };
-        let start = NavState { world_from_imu: Isometry3::identity(), velocity_mps: Vector3::zeros() };
+        let true_bias = ImuBias {
+            accel_mps2: Vector3::new(0.02, -0.01, 0.03),
+            gyro_rps: Vector3::new(0.001, -0.002, 0.003),
+        };
+        let sample = |b: &ImuBias| ImuSample {
+            dt_s: dt,
+            accel_mps2: accel_body + b.accel_mps2,
+            gyro_rps: Vector3::new(0.0, 0.0, omega) + b.gyro_rps,
+        };
+        let start = NavState {
+            world_from_imu: Isometry3::identity(),
+            velocity_mps: Vector3::zeros(),
+        };
 
         let mut exact = Preintegrated::new(true_bias);
         let mut wrong = Preintegrated::new(ImuBias::default());
@@ -137,17 +148,33 @@ mod tests {
         let t = n as f64 * dt;
         let truth_yaw = omega * t;
         // Velocity of a body accelerating at a along its heading that turns at ω: v = a/ω (sin ωt, 1 − cos ωt).
-        let truth_v = Vector3::new(0.5 / omega * truth_yaw.sin(), 0.5 / omega * (1.0 - truth_yaw.cos()), 0.0);
+        let truth_v = Vector3::new(
+            0.5 / omega * truth_yaw.sin(),
+            0.5 / omega * (1.0 - truth_yaw.cos()),
+            0.0,
+        );
         let predicted = exact.predict(&start, g, &true_bias);
-        assert!((predicted.velocity_mps - truth_v).norm() < 2e-3, "velocity {:?} vs {truth_v:?}", predicted.velocity_mps);
+        assert!(
+            (predicted.velocity_mps - truth_v).norm() < 2e-3,
+            "velocity {:?} vs {truth_v:?}",
+            predicted.velocity_mps
+        );
         let yaw = predicted.world_from_imu.rotation.euler_angles().2;
         assert!((yaw - truth_yaw).abs() < 1e-9, "yaw {yaw} vs {truth_yaw}");
 
         // Integrated with a zero bias, corrected to the true one by the Jacobians.
         let corrected = wrong.predict(&start, g, &true_bias);
         let uncorrected = wrong.predict(&start, g, &ImuBias::default());
-        let err = |s: &NavState| (s.world_from_imu.translation.vector - predicted.world_from_imu.translation.vector).norm();
-        assert!(err(&corrected) < 0.05 * err(&uncorrected), "first-order correction {} vs none {}", err(&corrected), err(&uncorrected));
+        let err = |s: &NavState| {
+            (s.world_from_imu.translation.vector - predicted.world_from_imu.translation.vector)
+                .norm()
+        };
+        assert!(
+            err(&corrected) < 0.05 * err(&uncorrected),
+            "first-order correction {} vs none {}",
+            err(&corrected),
+            err(&uncorrected)
+        );
         assert!((corrected.velocity_mps - predicted.velocity_mps).norm() < 1e-3);
     }
 }

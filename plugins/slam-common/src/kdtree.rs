@@ -62,7 +62,12 @@ impl KdTree {
         if k == 0 {
             return;
         }
-        let mut search = Search { query, k, worst: max_distance_sq, out };
+        let mut search = Search {
+            query,
+            k,
+            worst: max_distance_sq,
+            out,
+        };
         search.visit(self, 0, self.points.len());
     }
 
@@ -79,7 +84,10 @@ fn build(points: &mut [Vector3<f64>], axis: &mut [u8], _depth: usize) {
         return;
     }
     let (lo, hi) = points.iter().fold(
-        (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
+        (
+            Vector3::repeat(f64::INFINITY),
+            Vector3::repeat(f64::NEG_INFINITY),
+        ),
         |(lo, hi), p| (lo.inf(p), hi.sup(p)),
     );
     let a = (hi - lo).imax();
@@ -126,7 +134,11 @@ impl Search<'_> {
         let a = tree.axis[mid] as usize;
         let p = &tree.points[mid];
         let gap = self.query[a] - p[a];
-        let (near, far) = if gap < 0.0 { ((lo, mid), (mid + 1, hi)) } else { ((mid + 1, hi), (lo, mid)) };
+        let (near, far) = if gap < 0.0 {
+            ((lo, mid), (mid + 1, hi))
+        } else {
+            ((mid + 1, hi), (lo, mid))
+        };
         self.visit(tree, near.0, near.1);
         self.offer(mid, (p - self.query).norm_squared());
         if gap * gap < self.worst {
@@ -143,14 +155,24 @@ mod tests {
     #[test]
     fn nearest_matches_brute_force() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let mut random = || Vector3::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0), rng.random_range(-1.0..1.0));
+        let mut random = || {
+            Vector3::new(
+                rng.random_range(-10.0..10.0),
+                rng.random_range(-10.0..10.0),
+                rng.random_range(-1.0..1.0),
+            )
+        };
         let points: Vec<_> = (0..5000).map(|_| random()).collect();
         let tree = KdTree::new(points.clone());
         let mut out = Vec::new();
         for _ in 0..200 {
             let q = random();
             tree.nearest(&q, 5, 4.0, &mut out);
-            let mut brute: Vec<f64> = points.iter().map(|p| (p - q).norm_squared()).filter(|d| *d < 4.0).collect();
+            let mut brute: Vec<f64> = points
+                .iter()
+                .map(|p| (p - q).norm_squared())
+                .filter(|d| *d < 4.0)
+                .collect();
             brute.sort_by(f64::total_cmp);
             brute.truncate(5);
             let got: Vec<f64> = out.iter().map(|n| n.distance_sq).collect();

@@ -4,11 +4,16 @@
 //! eigenvalue is below a threshold are not updated, so that a scan that cannot fix a
 //! direction (a featureless corridor, a vine row seen end-on) leaves the prior guess there.
 //!
-//! The update is a left perturbation `world_from_x ← (Exp(δθ), δt) ∘ world_from_x`, so a
-//! transformed point `q = world_from_x · p` moves by `δθ × q + δt`, and a scalar residual
-//! `r(q)` with gradient `g = ∂r/∂q` has the Jacobian `[(q × g)ᵀ, gᵀ]`.
+//! The update is a right perturbation about the sensor, `world_from_x ← world_from_x ∘
+//! (Exp(δθ), δt)`, as LOAM linearises about the sensor's own origin, so that the
+//! eigen-directions of the normal matrix — and with them the degeneracy test — do not
+//! depend on where the world's origin is. A point `p` (in the frame `x`) moves by
+//! `R (δθ × p + δt)`, and a scalar residual with gradient `g = ∂r/∂q` at `q = world_from_x ·
+//! p` has the Jacobian `[(p × gₓ)ᵀ, gₓᵀ]` with `gₓ = Rᵀ g`.
 
-use nalgebra::{Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+};
 
 /// The normal equations `H δ = b` accumulated from weighted scalar residuals.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,7 +27,12 @@ pub struct NormalEquations {
 
 impl Default for NormalEquations {
     fn default() -> Self {
-        Self { h: Matrix6::zeros(), b: Vector6::zeros(), cost: 0.0, count: 0 }
+        Self {
+            h: Matrix6::zeros(),
+            b: Vector6::zeros(),
+            cost: 0.0,
+            count: 0,
+        }
     }
 }
 
@@ -36,9 +46,11 @@ pub struct Step {
 }
 
 impl NormalEquations {
-    /// Adds residual `r` at the transformed point `q` with gradient `g` and weight `w`.
-    pub fn add(&mut self, q: &Vector3<f64>, g: &Vector3<f64>, r: f64, w: f64) {
-        let c = q.cross(g);
+    /// Adds residual `r` of the point `p` (in the frame `x`), whose gradient rotated into
+    /// that frame is `g_in_x`, with weight `w`.
+    pub fn add(&mut self, p: &Vector3<f64>, g_in_x: &Vector3<f64>, r: f64, w: f64) {
+        let g = g_in_x;
+        let c = p.cross(g);
         let j = Vector6::new(c.x, c.y, c.z, g.x, g.y, g.z);
         self.h += w * j * j.transpose();
         self.b -= w * r * j;
@@ -72,15 +84,18 @@ impl NormalEquations {
             }
             delta += v * (v.dot(&self.b) / lambda);
         }
-        delta.iter().all(|x| x.is_finite()).then_some(Step { delta, degenerate_directions: degenerate })
+        delta.iter().all(|x| x.is_finite()).then_some(Step {
+            delta,
+            degenerate_directions: degenerate,
+        })
     }
 }
 
-/// Applies a left-perturbation update `[δθ; δt]` to `world_from_x`.
+/// Applies an update `[δθ; δt]` to `world_from_x` (on the right, in the frame `x`).
 pub fn apply(delta: &Vector6<f64>, world_from_x: &Isometry3<f64>) -> Isometry3<f64> {
     let rot = UnitQuaternion::from_scaled_axis(Vector3::new(delta[0], delta[1], delta[2]));
     let step = Isometry3::from_parts(Translation3::new(delta[3], delta[4], delta[5]), rot);
-    let mut out = step * world_from_x;
+    let mut out = world_from_x * step;
     out.rotation.renormalize();
     out
 }
@@ -99,7 +114,10 @@ mod tests {
     /// point-to-plane residuals recovers a known offset.
     #[test]
     fn recovers_an_offset_from_three_planes() {
-        let truth = Isometry3::from_parts(Translation3::new(0.2, -0.1, 0.05), UnitQuaternion::from_euler_angles(0.02, -0.01, 0.05));
+        let truth = Isometry3::from_parts(
+            Translation3::new(0.2, -0.1, 0.05),
+            UnitQuaternion::from_euler_angles(0.02, -0.01, 0.05),
+        );
         let mut points = Vec::new();
         for i in 0..10 {
             for j in 0..10 {
@@ -110,20 +128,31 @@ mod tests {
             }
         }
         // Points on the planes x=0, y=0, z=0 of the world, seen from `truth`.
-        let seen: Vec<_> = points.iter().map(|(p, n)| (truth.inverse() * nalgebra::Point3::from(*p), *n)).collect();
+        let seen: Vec<_> = points
+            .iter()
+            .map(|(p, n)| (truth.inverse() * nalgebra::Point3::from(*p), *n))
+            .collect();
         let mut estimate = Isometry3::identity();
         for _ in 0..10 {
             let mut ne = NormalEquations::default();
             for (p, n) in &seen {
                 let q = (estimate * p).coords;
-                ne.add(&q, n, n.dot(&q), 1.0);
+                ne.add(
+                    &p.coords,
+                    &(estimate.rotation.inverse() * n),
+                    n.dot(&q),
+                    1.0,
+                );
             }
             let step = ne.solve(1e-6).expect("well conditioned");
             assert_eq!(step.degenerate_directions, 0);
             estimate = apply(&step.delta, &estimate);
         }
         let err = estimate.inverse() * truth;
-        assert!(err.translation.vector.norm() < 1e-9 && err.rotation.angle() < 1e-9, "residual offset {err:?}");
+        assert!(
+            err.translation.vector.norm() < 1e-9 && err.rotation.angle() < 1e-9,
+            "residual offset {err:?}"
+        );
     }
 
     /// A single plane observes only three directions; the other three stay put.
@@ -135,7 +164,14 @@ mod tests {
             ne.add(&q, &Vector3::z(), 0.1, 1.0);
         }
         let step = ne.solve(1e-3).expect("partly observed");
-        assert_eq!(step.degenerate_directions, 3, "a plane fixes z, roll and pitch only");
-        assert!(step.delta[3].abs() < 1e-9 && step.delta[4].abs() < 1e-9 && step.delta[2].abs() < 1e-9, "{:?}", step.delta);
+        assert_eq!(
+            step.degenerate_directions, 3,
+            "a plane fixes z, roll and pitch only"
+        );
+        assert!(
+            step.delta[3].abs() < 1e-9 && step.delta[4].abs() < 1e-9 && step.delta[2].abs() < 1e-9,
+            "{:?}",
+            step.delta
+        );
     }
 }

@@ -14,7 +14,16 @@ pub fn downsample(points: &[Vector3<f64>], leaf_m: f64) -> Vec<Vector3<f64>> {
         .iter()
         .enumerate()
         .filter(|(_, p)| p.iter().all(|v| v.is_finite()))
-        .map(|(i, p)| ([(p.x * inv).floor() as i64, (p.y * inv).floor() as i64, (p.z * inv).floor() as i64], i as u32))
+        .map(|(i, p)| {
+            (
+                [
+                    (p.x * inv).floor() as i64,
+                    (p.y * inv).floor() as i64,
+                    (p.z * inv).floor() as i64,
+                ],
+                i as u32,
+            )
+        })
         .collect();
     keyed.sort_unstable();
     let mut out = Vec::new();
@@ -47,8 +56,15 @@ mod tests {
         ];
         let out = downsample(&points, 0.5);
         assert_eq!(out.len(), 3, "three voxels are occupied: {out:?}");
-        assert!(out.contains(&Vector3::new(0.2, 0.1, 0.1)), "centroid of the first two: {out:?}");
+        assert!(
+            out.contains(&Vector3::new(0.2, 0.1, 0.1)),
+            "centroid of the first two: {out:?}"
+        );
         let reversed: Vec<_> = points.iter().rev().copied().collect();
-        assert_eq!(downsample(&reversed, 0.5), out, "order of the input does not matter");
+        assert_eq!(
+            downsample(&reversed, 0.5),
+            out,
+            "order of the input does not matter"
+        );
     }
 }

@@ -1,0 +1,350 @@
+//! The LIO-SAM-style plugin on the simulator's own data: its stages checked against
+//! ground truth (deskewing a turning sweep, IMU preintegration), and the plugin as the host
+//! runs it — loaded from its `.so` by the `vinebench` binary — closing a loop in S1.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use lio_sam::config::{FeatureConfig, MappingConfig};
+use lio_sam::deskew::{SweepLayout, rings};
+use lio_sam::features::extract;
+use lio_sam::local_map::{LocalMap, MapKeyframe};
+use lio_sam::motion::{ImuQueue, Motion, propagate};
+use lio_sam::registration::register;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use sim::config::NoiseProfile;
+use sim::sensors::{LidarScan, Message};
+use sim::{SensorSet, SimConfig, Simulation};
+use slam_common::backend::ImuBias;
+use slam_common::imu::{NavState, Preintegrated};
+
+fn sensors(imu: bool, lidar: bool) -> SensorSet {
+    SensorSet {
+        imu,
+        lidar,
+        ..SensorSet::default()
+    }
+}
+
+fn plugin_points(scan: &LidarScan) -> Vec<plugin_api::LidarPoint> {
+    scan.points
+        .iter()
+        .map(|p| plugin_api::LidarPoint {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            intensity: p.intensity,
+            time_s: p.time_s,
+            ring: p.ring,
+        })
+        .collect()
+}
+
+/// The IMU's pose and velocity at `t_ns`, from the ground-truth trajectory.
+fn imu_truth(sim: &Simulation, t_ns: i64) -> NavState {
+    let base_from_imu = sim.config.sensors.imu.mount.base_from_sensor();
+    let s = sim.trajectory.state(t_ns);
+    let lever_in_world = s.world_from_base.rotation * base_from_imu.translation.vector;
+    let omega_in_world = s.world_from_base.rotation * s.omega_in_base;
+    NavState {
+        world_from_imu: s.world_from_base * base_from_imu,
+        velocity_mps: s.velocity + omega_in_world.cross(&lever_in_world),
+    }
+}
+
+fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (d.translation.vector.norm(), d.rotation.angle().to_degrees())
+}
+
+/// Guards the IMU integration that predicts every sweep and deskews every point: from the
+/// true state, 2 s of the simulator's noise-free IMU integrate to the true state, on the
+/// straight and in the headland turn of S2.
+#[test]
+fn preintegrated_imu_matches_integrated_ground_truth() {
+    let mut config = SimConfig::default();
+    config.sensors.imu.noise = NoiseProfile::None;
+    let sim = Simulation::new(&config, "s2", 0).expect("S2 builds");
+    let mut queue = ImuQueue::default();
+    for m in sim.stream(sensors(true, false)) {
+        if let Message::Imu(m) = m {
+            queue.push(plugin_api::Imu {
+                stamp_ns: m.stamp_ns,
+                accel_mps2: m.accel_mps2.into(),
+                gyro_rps: m.gyro_rps.into(),
+            });
+        }
+    }
+    let turn = turning_time(&sim);
+    for t0 in [5_000_000_000, 20_000_000_000, turn - 1_000_000_000] {
+        let t1 = t0 + 2_000_000_000;
+        let mut pre = Preintegrated::new(ImuBias::default());
+        for (_, s) in queue.samples(t0, t1) {
+            pre.integrate(&s);
+        }
+        assert!(
+            (pre.dt_s - 2.0).abs() < 1e-9,
+            "2 s integrated, got {}",
+            pre.dt_s
+        );
+        let predicted = pre.predict(
+            &imu_truth(&sim, t0),
+            sim::robot::GRAVITY,
+            &ImuBias::default(),
+        );
+        let truth = imu_truth(&sim, t1);
+        let (dp, dr) = pose_error(&predicted.world_from_imu, &truth.world_from_imu);
+        let dv = (predicted.velocity_mps - truth.velocity_mps).norm();
+        let moved = (truth.world_from_imu.translation.vector
+            - imu_truth(&sim, t0).world_from_imu.translation.vector)
+            .norm();
+        assert!(
+            moved > 0.3,
+            "the window at {t0} ns should see motion, moved {moved} m"
+        );
+        assert!(
+            dp < 0.01 && dr < 0.05 && dv < 0.01,
+            "after 2 s from {t0} ns: {dp:.4} m, {dr:.4}°, {dv:.4} m/s off the truth"
+        );
+    }
+}
+
+/// The fastest turn of the route taken while driving (largest yaw rate at 0.2 m/s or more).
+fn turning_time(sim: &Simulation) -> i64 {
+    let rate = |t: i64| {
+        let s = sim.trajectory.state(t);
+        if s.velocity.norm() >= 0.2 {
+            s.omega_in_base.z.abs()
+        } else {
+            0.0
+        }
+    };
+    (0..sim.duration_ns() / 100_000_000)
+        .map(|k| k * 100_000_000)
+        .max_by(|a, b| rate(*a).total_cmp(&rate(*b)))
+        .expect("a route has samples")
+}
+
+/// Guards deskewing: a sweep taken while the robot turns at its top yaw rate is smeared by
+/// about 2° over the sweep (S2's headland turn). Registered to an exact map of the sweeps before it, the sweep
+/// deskewed with IMU-propagated poses lands closer to the truth than the raw sweep.
+#[test]
+fn deskewing_improves_registration_on_a_turning_scan() {
+    let sim = Simulation::new(&SimConfig::default(), "s2", 3).expect("S2 builds");
+    let turn = turning_time(&sim);
+    let base_from_lidar = sim.config.sensors.lidar.mount.base_from_sensor();
+    let base_from_imu = sim.config.sensors.imu.mount.base_from_sensor();
+    let imu_from_lidar = base_from_imu.inverse() * base_from_lidar;
+    let world_from_lidar = |t: i64| sim.trajectory.pose(t) * base_from_lidar;
+    let layout = SweepLayout {
+        sweep_ns: 100_000_000,
+        columns: sim.config.sensors.lidar.columns as f64,
+        min_range_m: 1.0,
+        max_range_m: 1000.0,
+    };
+    let features_cfg = FeatureConfig::default();
+    let mapping_cfg = MappingConfig::default();
+
+    let mut queue = ImuQueue::default();
+    let mut before = Vec::new();
+    let mut turning = None;
+    for m in sim.stream(sensors(true, true)) {
+        match m {
+            Message::Imu(m) => queue.push(plugin_api::Imu {
+                stamp_ns: m.stamp_ns,
+                accel_mps2: m.accel_mps2.into(),
+                gyro_rps: m.gyro_rps.into(),
+            }),
+            Message::Lidar(scan) if scan.stamp_ns + scan.sweep_ns <= turn - 2_000_000_000 => {
+                // The map: sweeps of the 6 s before, deskewed with the true motion.
+                if scan.stamp_ns >= turn - 8_000_000_000 && scan.stamp_ns % 500_000_000 == 0 {
+                    let truth = Motion::new(
+                        (0..=10)
+                            .map(|k| scan.stamp_ns + k * 10_000_000)
+                            .map(|t| (t, world_from_lidar(t)))
+                            .collect(),
+                    );
+                    let f = extract(
+                        &rings(&plugin_points(&scan), scan.stamp_ns, Some(&truth), &layout),
+                        &features_cfg,
+                    );
+                    before.push((scan.stamp_ns, f));
+                }
+            }
+            Message::Lidar(scan) if scan.stamp_ns >= turn => {
+                turning = Some(scan);
+                break;
+            }
+            _ => {}
+        }
+    }
+    let scan = turning.expect("a sweep in the turn");
+    let yaw_over_sweep = (world_from_lidar(scan.stamp_ns).inverse()
+        * world_from_lidar(scan.stamp_ns + scan.sweep_ns))
+    .rotation
+    .angle()
+    .to_degrees();
+    assert!(
+        yaw_over_sweep > 2.0,
+        "the sweep must turn noticeably, turned {yaw_over_sweep}°"
+    );
+    let keyframes: Vec<MapKeyframe<'_>> = before
+        .iter()
+        .map(|(t, f)| MapKeyframe {
+            stamp_ns: *t,
+            world_from_lidar: world_from_lidar(*t),
+            features: f,
+        })
+        .collect();
+    assert!(keyframes.len() >= 8, "map from {} sweeps", keyframes.len());
+    let map = LocalMap::build(&keyframes, &mapping_cfg);
+
+    // IMU motion through the sweep, from the true state at its start (noisy IMU, zero bias).
+    let start = imu_truth(&sim, scan.stamp_ns);
+    let samples = queue.samples(scan.stamp_ns, scan.stamp_ns + scan.sweep_ns);
+    let (imu_motion, _) = propagate(
+        &start,
+        scan.stamp_ns,
+        &samples,
+        &ImuBias::default(),
+        sim::robot::GRAVITY,
+    );
+    let lidar_motion = Motion::new(
+        (0..=10)
+            .map(|k| scan.stamp_ns + k * 10_000_000)
+            .map(|t| (t, imu_motion.at(t).expect("propagated") * imu_from_lidar))
+            .collect(),
+    );
+    let truth = world_from_lidar(scan.stamp_ns);
+    let guess = truth
+        * Isometry3::from_parts(
+            Translation3::new(0.05, -0.03, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 0.01),
+        );
+    let points = plugin_points(&scan);
+    let error_of = |motion: Option<&Motion>| {
+        let f = extract(
+            &rings(&points, scan.stamp_ns, motion, &layout),
+            &features_cfg,
+        );
+        let r = register(&f, &map, &guess, &mapping_cfg).expect("enough features to register");
+        pose_error(&r.world_from_lidar, &truth)
+    };
+    let (raw_m, raw_deg) = error_of(None);
+    let (deskewed_m, deskewed_deg) = error_of(Some(&lidar_motion));
+    assert!(
+        deskewed_m < raw_m && deskewed_deg < 0.5 * raw_deg,
+        "deskewed {deskewed_m:.4} m {deskewed_deg:.3}° vs raw {raw_m:.4} m {raw_deg:.3}° (sweep turned {yaw_over_sweep:.2}°)"
+    );
+    assert!(
+        deskewed_m < 0.02 && deskewed_deg < 0.2,
+        "deskewed sweep registers within 2 cm and 0.2°: {deskewed_m:.4} m {deskewed_deg:.3}°"
+    );
+}
+
+fn deps_dir() -> PathBuf {
+    std::env::current_exe()
+        .expect("test executable")
+        .parent()
+        .expect("deps directory")
+        .to_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&t).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Runs the plugin through the host on a scenario; returns its results folder.
+fn run(dir: &Path, scenario: &str, label: &str, params: &str) -> PathBuf {
+    let config = dir.join(format!("{label}.toml"));
+    std::fs::write(&config, params).expect("write plugin config");
+    let out = dir.join(label);
+    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args([
+            "run",
+            "--scenario",
+            scenario,
+            "--plugin",
+            "lio-sam",
+            "--plugin-config",
+        ])
+        .arg(&config)
+        .arg("--out")
+        .arg(&out)
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .output()
+        .expect("vinebench runs");
+    assert!(
+        o.status.success(),
+        "run {label} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out.join(scenario).join("lio-sam")
+}
+
+/// ATE of a TUM trajectory against ground truth (SE(3) alignment), from `vinebench eval`.
+fn ate(folder: &Path, file: &str) -> f64 {
+    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args(["eval", "--align", "se3", "--json"])
+        .arg(folder.join("groundtruth.tum"))
+        .arg(folder.join(file))
+        .output()
+        .expect("vinebench eval runs");
+    assert!(
+        o.status.success(),
+        "eval failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("json")["rmse"]
+        .as_f64()
+        .expect("rmse")
+}
+
+/// Guards loop closure end to end: in S1 the robot comes back along the row it went down;
+/// the plugin, loaded from its `.so` by the host, must accept loop closures there, and the
+/// optimised trajectory must beat both its own online estimate and the same plugin with
+/// loop closure off.
+#[test]
+fn a_loop_is_closed_in_s1_and_the_error_drops() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let with = run(dir.path(), "s1", "with-loops", "");
+    let without = run(
+        dir.path(),
+        "s1",
+        "without-loops",
+        "[loop_closure]\nenabled = false\n",
+    );
+
+    let events = json(&with.join("events.json"));
+    let accepted = events
+        .as_array()
+        .expect("events are a list")
+        .iter()
+        .filter(|e| e["kind"] == "loop_closure_accepted")
+        .count();
+    assert!(accepted >= 1, "no loop closure accepted in S1: {events}");
+    let none = json(&without.join("events.json"));
+    assert_eq!(
+        none.as_array().map(Vec::len),
+        Some(0),
+        "loop closure off gives no events: {none}"
+    );
+
+    let final_with = ate(&with, "estimate.tum");
+    let online_with = ate(&with, "online.tum");
+    let final_without = ate(&without, "estimate.tum");
+    assert!(
+        final_with < 0.08,
+        "ATE with loop closures {final_with:.4} m"
+    );
+    assert!(
+        final_with < final_without && final_with < online_with,
+        "loop closures must lower the error: final {final_with:.4} m, online {online_with:.4} m, without loops {final_without:.4} m"
+    );
+    let metrics = json(&with.join("metrics.json"));
+    assert!(
+        metrics.to_string().contains("rmse"),
+        "metrics.json is written: {metrics}"
+    );
+}
