@@ -155,21 +155,23 @@ fn deskewing_improves_registration_on_a_turning_scan() {
                 accel_mps2: m.accel_mps2.into(),
                 gyro_rps: m.gyro_rps.into(),
             }),
-            Message::Lidar(scan) if scan.stamp_ns + scan.sweep_ns <= turn - 2_000_000_000 => {
-                // The map: sweeps of the 6 s before, deskewed with the true motion.
-                if scan.stamp_ns >= turn - 8_000_000_000 && scan.stamp_ns % 500_000_000 == 0 {
-                    let truth = Motion::new(
-                        (0..=10)
-                            .map(|k| scan.stamp_ns + k * 10_000_000)
-                            .map(|t| (t, world_from_lidar(t)))
-                            .collect(),
-                    );
-                    let f = extract(
-                        &rings(&plugin_points(&scan), scan.stamp_ns, Some(&truth), &layout),
-                        &features_cfg,
-                    );
-                    before.push((scan.stamp_ns, f));
-                }
+            // The map: sweeps of the 6 s before, deskewed with the true motion.
+            Message::Lidar(scan)
+                if scan.stamp_ns + scan.sweep_ns <= turn - 2_000_000_000
+                    && scan.stamp_ns >= turn - 8_000_000_000
+                    && scan.stamp_ns % 500_000_000 == 0 =>
+            {
+                let truth = Motion::new(
+                    (0..=10)
+                        .map(|k| scan.stamp_ns + k * 10_000_000)
+                        .map(|t| (t, world_from_lidar(t)))
+                        .collect(),
+                );
+                let f = extract(
+                    &rings(&plugin_points(&scan), scan.stamp_ns, Some(&truth), &layout),
+                    &features_cfg,
+                );
+                before.push((scan.stamp_ns, f));
             }
             Message::Lidar(scan) if scan.stamp_ns >= turn => {
                 turning = Some(scan);

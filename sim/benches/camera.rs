@@ -1,5 +1,6 @@
 //! RGB-D camera throughput: frames/s of colour + registered depth (640x480, noise and
-//! shadows on) from a pose in a lane of the default world (growth stage 3), all cores.
+//! shadows on) from a pose in a lane of the default world (growth stage 3), all cores; the
+//! plain timing is repeated in the same world at growth stage 4 (the closed leaf wall).
 //! Run: `cargo bench -p vinebench-sim --bench camera`.
 
 use std::hint::black_box;
@@ -40,6 +41,22 @@ fn benches(c: &mut Criterion) {
         "rgbd 640x480: {fps:.1} frames/s ({:.2} ms/frame) on {} threads",
         1e3 / fps,
         rayon::current_num_threads()
+    );
+
+    // The same pose at full canopy (about three times the leaf triangles).
+    let mut full = cfg.clone();
+    full.vineyard.growth_stage = 4.0;
+    let world4 = World::build(&full.vineyard, &full.terrain, full.world_seed);
+    let camera4 = RgbdCamera::new(&full.sensors.camera, &world4);
+    let started = Instant::now();
+    for _ in 0..frames {
+        black_box(camera4.render(&base, &mut rng));
+    }
+    let fps4 = frames as f64 / started.elapsed().as_secs_f64();
+    eprintln!(
+        "rgbd 640x480, growth stage 4 ({} triangles): {fps4:.1} frames/s ({:.2} ms/frame)",
+        world4.mesh.triangle_count(),
+        1e3 / fps4
     );
 
     let mut group = c.benchmark_group("camera");

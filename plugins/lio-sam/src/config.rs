@@ -12,6 +12,10 @@ pub struct Config {
     pub deskew: bool,
     /// Use the IMU: prediction, deskewing and preintegration factors. Off = lidar only.
     pub use_imu: bool,
+    /// With the IMU on: put IMU-preintegration factors (with velocity and bias variables)
+    /// into the keyframe graph. Off: the IMU only predicts and deskews, and the graph is a
+    /// pose graph, as in LIO-SAM's released code, whose mapping graph has no IMU factors.
+    pub imu_factors: bool,
     /// Gravity, m/s² (`imuGravity`; ours is the simulator's standard gravity).
     pub gravity_mps2: f64,
     /// IMU noise for the preintegration factors. Zero entries are taken from the rig.
@@ -30,6 +34,7 @@ impl Default for Config {
         Self {
             deskew: true,
             use_imu: true,
+            imu_factors: true,
             gravity_mps2: 9.80665,
             imu: ImuNoiseConfig::default(),
             features: FeatureConfig::default(),
@@ -199,8 +204,9 @@ pub struct LoopConfig {
     /// Keyframes either side of the candidate that make its submap
     /// (`historyKeyframeSearchNum`).
     pub submap_keyframes: usize,
-    /// ICP fitness (mean squared distance, m²) a closure must beat
-    /// (`historyKeyframeFitnessScore`).
+    /// ICP fitness (mean squared nearest-neighbour distance, m²) a closure must beat
+    /// (`historyKeyframeFitnessScore` 0.3, for 0.4 m clouds; the score scales with the
+    /// square of the point spacing, so our 0.2 m clouds use about a quarter: 0.1).
     pub max_fitness: f64,
     /// Minimum time between two attempts (`loopClosureFrequency` 1 Hz).
     pub min_interval_s: f64,
@@ -215,7 +221,7 @@ impl Default for LoopConfig {
             search_radius_m: 15.0,
             min_age_s: 30.0,
             submap_keyframes: 25,
-            max_fitness: 0.3,
+            max_fitness: 0.1,
             min_interval_s: 1.0,
             robust_scale: 1.0,
         }

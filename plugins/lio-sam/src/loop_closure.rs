@@ -66,7 +66,7 @@ pub fn verify(
                 .map(to_world),
         );
     }
-    let target = IcpTarget::new(downsample(&target, leaf_m), 5, 0.1);
+    let mut target = IcpTarget::new(downsample(&target, leaf_m), 5, 0.1);
     let source: Vec<_> = newest
         .features
         .edges
@@ -76,7 +76,7 @@ pub fn verify(
         .collect();
     let result = icp(
         &source,
-        &target,
+        &mut target,
         &newest.world_from_lidar,
         &IcpConfig::default(),
     )

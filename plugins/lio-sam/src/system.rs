@@ -20,6 +20,9 @@ use crate::loop_closure::{LoopKeyframe, candidate, verify};
 use crate::motion::{ImuQueue, Motion, propagate};
 use crate::registration::register;
 
+/// Sweeps over which the lidar-only motion model measures velocity.
+const VELOCITY_BASELINE: usize = 5;
+
 /// A keyframe: when, its features (lidar frame), and its pose as registered.
 #[derive(Debug)]
 struct Keyframe {
@@ -51,7 +54,7 @@ pub struct LioSam {
     /// The IMU state at the last registered sweep, and the bias estimate.
     nav: Option<(i64, NavState)>,
     bias: ImuBias,
-    /// The last two registered sweeps (`world_from_lidar`), for the constant-velocity model.
+    /// The last registered sweeps (`world_from_lidar`), for the constant-velocity model.
     previous: Vec<(i64, Isometry3<f64>)>,
     keyframes: Vec<Keyframe>,
     graph: KeyframeGraph,
@@ -132,10 +135,12 @@ impl LioSam {
                 let world_from_imu = Isometry3::from_parts(Vector3::zeros().into(), world_r_imu);
                 Motion::new(vec![(start_ns, world_from_imu * self.imu_from_lidar)])
             }
+            // The velocity over several sweeps: from only the last two, registration noise
+            // feeds back through deskewing and grows into an oscillation.
             (_, false) => match self.previous.as_slice() {
                 [] => Motion::new(vec![(start_ns, Isometry3::identity())]),
                 [only] => Motion::new(vec![*only]),
-                [.., a, b] => Motion::new(vec![*a, *b]),
+                [first, .., last] => Motion::new(vec![*first, *last]),
             },
         }
     }
@@ -161,7 +166,7 @@ impl LioSam {
         ));
         self.imu.discard_before(start_ns);
         self.previous.push((start_ns, *world_from_lidar));
-        if self.previous.len() > 2 {
+        if self.previous.len() > VELOCITY_BASELINE {
             self.previous.remove(0);
         }
     }
@@ -189,7 +194,9 @@ impl LioSam {
     ) -> Result<(), PluginError> {
         let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
         let samples = match self.keyframes.last() {
-            Some(prev) if self.cfg.use_imu => self.keyframe_samples(prev.stamp_ns, stamp_ns),
+            Some(prev) if self.cfg.use_imu && self.cfg.imu_factors => {
+                self.keyframe_samples(prev.stamp_ns, stamp_ns)
+            }
             _ => Vec::new(),
         };
         let velocity = self.nav.map_or(Vector3::zeros(), |(_, s)| s.velocity_mps);
@@ -206,8 +213,7 @@ impl LioSam {
         }
         // The state at the newest keyframe, as optimised.
         let k = self.keyframes.len() - 1;
-        if self.cfg.use_imu {
-            let velocity = self.graph.velocity(k).unwrap_or(velocity);
+        if let Some(velocity) = self.graph.velocity(k) {
             self.bias = self.graph.bias(k).unwrap_or(self.bias);
             self.nav = Some((
                 stamp_ns,
@@ -329,7 +335,7 @@ impl SlamSystem for LioSam {
         let imu_noise = cfg.imu.resolve(&imu.noise, cfg.gravity_mps2);
         let graph = KeyframeGraph::new(
             &cfg.backend,
-            cfg.use_imu.then_some(imu_noise),
+            (cfg.use_imu && cfg.imu_factors).then_some(imu_noise),
             cfg.mapping.odometry_sigma_rad,
             cfg.mapping.odometry_sigma_m,
         )

@@ -10,30 +10,45 @@ use crate::geometry::fit_plane;
 use crate::kdtree::KdTree;
 use crate::lsq::{NormalEquations, apply, converged};
 
-/// A target cloud ready for ICP: its k-d tree and the normal at each point, where the
-/// neighbourhood is planar.
+/// A target cloud ready for ICP: its k-d tree and the normal at each point where the
+/// neighbourhood is planar, fitted the first time a source point is matched to it (most
+/// target points never are).
 #[derive(Debug, Clone)]
 pub struct IcpTarget {
     tree: KdTree,
-    normals: Vec<Option<Vector3<f64>>>,
+    normals: Vec<Option<Option<Vector3<f64>>>>,
+    neighbours: usize,
+    max_plane_distance_m: f64,
 }
 
 impl IcpTarget {
     pub fn new(points: Vec<Vector3<f64>>, neighbours: usize, max_plane_distance_m: f64) -> Self {
-        let tree = KdTree::new(points);
-        let mut found = Vec::new();
-        let mut patch = Vec::new();
-        let normals = tree
-            .points()
-            .iter()
-            .map(|p| {
-                tree.nearest(p, neighbours, 1.0, &mut found);
-                patch.clear();
-                patch.extend(found.iter().map(|n| *tree.point(n.index)));
-                fit_plane(&patch, max_plane_distance_m).map(|pl| pl.normal)
-            })
-            .collect();
-        Self { tree, normals }
+        let normals = vec![None; points.len()];
+        Self {
+            tree: KdTree::new(points),
+            normals,
+            neighbours,
+            max_plane_distance_m,
+        }
+    }
+
+    /// The normal at target point `i`, if its neighbourhood is planar.
+    fn normal(
+        &mut self,
+        i: usize,
+        found: &mut Vec<crate::kdtree::Neighbour>,
+        patch: &mut Vec<Vector3<f64>>,
+    ) -> Option<Vector3<f64>> {
+        if let Some(n) = self.normals[i] {
+            return n;
+        }
+        let p = *self.tree.point(i);
+        self.tree.nearest(&p, self.neighbours, 1.0, found);
+        patch.clear();
+        patch.extend(found.iter().map(|n| *self.tree.point(n.index)));
+        let n = fit_plane(patch, self.max_plane_distance_m).map(|pl| pl.normal);
+        self.normals[i] = Some(n);
+        n
     }
 
     pub fn len(&self) -> usize {
@@ -74,7 +89,7 @@ pub struct IcpResult {
 /// Refines `initial` (`target_from_source`).
 pub fn icp(
     source: &[Vector3<f64>],
-    target: &IcpTarget,
+    target: &mut IcpTarget,
     initial: &Isometry3<f64>,
     config: &IcpConfig,
 ) -> Option<IcpResult> {
@@ -84,6 +99,7 @@ pub fn icp(
     let gate_sq = config.max_correspondence_m * config.max_correspondence_m;
     let mut pose = *initial;
     let mut done = false;
+    let (mut found, mut patch) = (Vec::new(), Vec::new());
     for _ in 0..config.max_iterations {
         let mut ne = NormalEquations::default();
         for p in source {
@@ -91,7 +107,7 @@ pub fn icp(
             let Some(nb) = target.tree.nearest_one(&q, gate_sq) else {
                 continue;
             };
-            let Some(n) = target.normals[nb.index] else {
+            let Some(n) = target.normal(nb.index, &mut found, &mut patch) else {
                 continue;
             };
             let r = n.dot(&(q - target.tree.point(nb.index)));
@@ -152,10 +168,10 @@ mod tests {
             .step_by(2)
             .map(|p| (truth.inverse() * Point3::from(*p)).coords)
             .collect();
-        let prepared = IcpTarget::new(target, 5, 0.05);
+        let mut prepared = IcpTarget::new(target, 5, 0.05);
         let result = icp(
             &source,
-            &prepared,
+            &mut prepared,
             &Isometry3::identity(),
             &IcpConfig::default(),
         )
@@ -168,7 +184,7 @@ mod tests {
         assert!(result.fitness < 1e-4, "fitness {}", result.fitness);
         let start = icp(
             &source,
-            &prepared,
+            &mut prepared,
             &Isometry3::identity(),
             &IcpConfig {
                 max_iterations: 0,

@@ -109,6 +109,7 @@ struct Search<'a> {
 }
 
 impl Search<'_> {
+    #[inline(always)]
     fn offer(&mut self, index: usize, distance_sq: f64) {
         if distance_sq >= self.worst {
             return;

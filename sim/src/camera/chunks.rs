@@ -5,7 +5,8 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::raster::View;
+use super::raster::{View, cross, dot, sub};
+use super::texture::TriConstants;
 use crate::world::{Material, Mesh};
 
 /// One triangle with everything shading needs, stored in chunk order.
@@ -16,6 +17,42 @@ pub(crate) struct Tri {
     /// Corners in texture space (see [`Mesh::tex`]).
     pub t: [[f32; 3]; 3],
     pub material: Material,
+    /// Unit normal `(p1 - p0) x (p2 - p0)` (zero for a degenerate triangle).
+    pub n: [f32; 3],
+    /// Gradients of the barycentric weights of corners 1 and 2 in the triangle's plane:
+    /// a point `x` of the plane has weights `g[k] · (x - p0)`.
+    pub g: [[f32; 3]; 2],
+    pub k: TriConstants,
+}
+
+impl Tri {
+    fn new(p: [[f32; 3]; 3], t: [[f32; 3]; 3], material: Material) -> Self {
+        let e1 = sub(&p[1], &p[0]);
+        let e2 = sub(&p[2], &p[0]);
+        let n = cross(&e1, &e2);
+        let n2 = dot(&n, &n);
+        let (unit, g) = if n2 > 0.0 && n2.is_finite() {
+            let inv = 1.0 / n2;
+            let len = n2.sqrt();
+            (
+                n.map(|c| c / len),
+                [
+                    cross(&e2, &n).map(|c| c * inv),
+                    cross(&n, &e1).map(|c| c * inv),
+                ],
+            )
+        } else {
+            ([0.0; 3], [[0.0; 3]; 2])
+        };
+        Self {
+            p,
+            t,
+            material,
+            n: unit,
+            g,
+            k: TriConstants::new(material, &t),
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -63,11 +100,7 @@ impl Chunks {
                         [q.x, q.y, q.z]
                     })
                 });
-                Tri {
-                    p,
-                    t,
-                    material: mesh.materials[i as usize],
-                }
+                Tri::new(p, t, mesh.materials[i as usize])
             })
             .collect();
         let mut chunks = Vec::new();

@@ -101,38 +101,53 @@ impl Effects {
         out
     }
 
-    /// Fills one band (pixels `first..`) of the depth image from the whole clean depth.
+    /// Fills one band (pixels `first..`, whole rows) of the depth image from the whole
+    /// clean depth.
     pub fn depth_band(&self, first: usize, depth: &[f32], cos_incidence: &[f32], out: &mut [f32]) {
         let w = self.width;
         let n = depth.len();
-        for (k, out) in out.iter_mut().enumerate() {
-            let i = first + k;
-            let z = depth[i];
-            if !(self.min_depth_m..=self.max_depth_m).contains(&z) {
-                *out = 0.0;
-                continue;
+        // Row by row: no integer division per pixel.
+        for (r, out) in out.chunks_mut(w).enumerate() {
+            let row = first + r * w;
+            for (u, out) in out.iter_mut().enumerate() {
+                let i = row + u;
+                *out = self.depth_pixel(i, u, depth, cos_incidence, n);
             }
-            if self.edge_dropout_ratio > 0.0 {
-                let (u, v) = (i % w, i / w);
-                let limit = self.edge_dropout_ratio * z;
-                let jump = |j: usize| {
-                    let nz = depth[j];
-                    nz == 0.0 || (nz - z).abs() > limit
-                };
-                if (u > 0 && jump(i - 1))
-                    || (u + 1 < w && jump(i + 1))
-                    || (v > 0 && jump(i - w))
-                    || (i + w < n && jump(i + w))
-                {
-                    *out = 0.0;
-                    continue;
-                }
-            }
-            *out = if self.depth_noise {
-                z + sigma_from_cos(z, cos_incidence[i]) * gaussian(self.seed, 2 * i as u64 + 1)
-            } else {
-                z
+        }
+    }
+
+    #[inline]
+    fn depth_pixel(
+        &self,
+        i: usize,
+        u: usize,
+        depth: &[f32],
+        cos_incidence: &[f32],
+        n: usize,
+    ) -> f32 {
+        let w = self.width;
+        let z = depth[i];
+        if !(self.min_depth_m..=self.max_depth_m).contains(&z) {
+            return 0.0;
+        }
+        if self.edge_dropout_ratio > 0.0 {
+            let limit = self.edge_dropout_ratio * z;
+            let jump = |j: usize| {
+                let nz = depth[j];
+                nz == 0.0 || (nz - z).abs() > limit
             };
+            if (u > 0 && jump(i - 1))
+                || (u + 1 < w && jump(i + 1))
+                || (i >= w && jump(i - w))
+                || (i + w < n && jump(i + w))
+            {
+                return 0.0;
+            }
+        }
+        if self.depth_noise {
+            z + sigma_from_cos(z, cos_incidence[i]) * gaussian(self.seed, 2 * i as u64 + 1)
+        } else {
+            z
         }
     }
 }

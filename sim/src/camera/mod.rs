@@ -39,8 +39,13 @@
 //!   colour is rendered to the horizon.
 //!
 //! Speed (`cargo bench -p vinebench-sim --bench camera`, a lane of the default world at
-//! growth stage 3, ~18k of its 77k triangles in the frustum): about 16 ms per RGB + depth
-//! frame on two cores (60 frames/s), about 28 ms on one. Sample frames: `docs/camera/`.
+//! growth stage 3, ~18k of its 77k triangles in the frustum): about 11 ms per RGB + depth
+//! frame on two otherwise idle cores (90 frames/s; 46 frames/s with another benchmark on
+//! the same cores), 17 ms at growth stage 4 (217k triangles). Almost all of it is per
+//! visible pixel, each shaded once: materials about a third, the ray-plane intersection,
+//! light and colour encoding another third. What does not change from frame to frame is
+//! computed once per world (a triangle's unit normal, barycentric gradients and material
+//! constants); nothing per pixel divides by an integer. Sample frames: `docs/camera/`.
 
 mod chunks;
 mod depth_noise;
@@ -157,19 +162,38 @@ impl RgbdCamera {
             .zip(cos_incidence.par_chunks_mut(w * BAND_ROWS))
             .zip(bins.par_iter())
             .enumerate()
-            .for_each(|(band, (((rgb, z), cos), list))| {
-                let first_row = band * BAND_ROWS;
-                let mut inv_z = vec![0.0f32; z.len()];
-                let mut ids = vec![u32::MAX; z.len()];
-                raster::rasterize_band(&tris, list, first_row, w, &mut inv_z, &mut ids);
-                for (k, (z, cos)) in z.iter_mut().zip(cos).enumerate() {
-                    let s = shader.shade(k % w, first_row + k / w, ids[k], inv_z[k]);
-                    let i = first_row * w + k;
-                    rgb[3 * k..3 * k + 3].copy_from_slice(&effects.colour(i, &s.rgb));
-                    *z = s.depth;
-                    *cos = s.cos_incidence;
-                }
-            });
+            .for_each_init(
+                // Visibility buffer, reused by the bands a worker takes in turn.
+                || (vec![0.0f32; w * BAND_ROWS], vec![u32::MAX; w * BAND_ROWS]),
+                |(inv_z, ids), (band, (((rgb, z), cos), list))| {
+                    let first_row = band * BAND_ROWS;
+                    let (inv_z, ids) = (&mut inv_z[..z.len()], &mut ids[..z.len()]);
+                    inv_z.fill(0.0);
+                    ids.fill(u32::MAX);
+                    raster::rasterize_band(&tris, list, first_row, w, inv_z, ids);
+                    // Row by row: no integer division per pixel.
+                    for (r, ((rgb, z), cos)) in rgb
+                        .chunks_exact_mut(3 * w)
+                        .zip(z.chunks_exact_mut(w))
+                        .zip(cos.chunks_exact_mut(w))
+                        .enumerate()
+                    {
+                        let v = first_row + r;
+                        for (u, ((rgb, z), cos)) in rgb
+                            .chunks_exact_mut(3)
+                            .zip(z.iter_mut())
+                            .zip(cos.iter_mut())
+                            .enumerate()
+                        {
+                            let k = r * w + u;
+                            let s = shader.shade(u, v, ids[k], inv_z[k]);
+                            rgb.copy_from_slice(&effects.colour(v * w + u, &s.rgb));
+                            *z = s.depth;
+                            *cos = s.cos_incidence;
+                        }
+                    }
+                },
+            );
 
         // 4: depth effects (edge dropout looks at the neighbouring rows).
         let mut depth_m = vec![0.0f32; w * h];

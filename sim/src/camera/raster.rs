@@ -32,6 +32,8 @@ pub(crate) struct View {
     pub fy: f32,
     pub cx: f32,
     pub cy: f32,
+    inv_fx: f32,
+    inv_fy: f32,
     pub width: usize,
     pub height: usize,
     /// Frustum planes in the world frame: inside when `n · p + d >= 0`.
@@ -44,6 +46,14 @@ pub(crate) fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
 
 pub(crate) fn sub(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(crate) fn cross(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 impl View {
@@ -79,6 +89,8 @@ impl View {
             fy: k.fy as f32,
             cx: k.cx as f32,
             cy: k.cy as f32,
+            inv_fx: (1.0 / k.fx) as f32,
+            inv_fy: (1.0 / k.fy) as f32,
             width: k.width,
             height: k.height,
             planes,
@@ -106,8 +118,8 @@ impl View {
     /// Direction of the ray through pixel (u, v) in the world frame, scaled so that its
     /// optical z component is 1.
     pub fn ray(&self, u: f32, v: f32) -> [f32; 3] {
-        let x = (u - self.cx) / self.fx;
-        let y = (v - self.cy) / self.fy;
+        let x = (u - self.cx) * self.inv_fx;
+        let y = (v - self.cy) * self.inv_fy;
         [0, 1, 2].map(|d| self.axes[0][d] * x + self.axes[1][d] * y + self.axes[2][d])
     }
 }
@@ -133,8 +145,12 @@ pub(crate) struct ScreenTri {
     q0: f32,
     qx: f32,
     qy: f32,
-    /// +1 or -1: makes the edge functions positive inside.
-    sign: f32,
+    /// Per edge `k` (from corner `k` to `k + 1`): `x = x[k] + slope (y - y[k])` on it, and
+    /// `side`: +1 if it bounds the span on the right, -1 on the left; for a horizontal edge
+    /// (0), `flat` is the sign of `(y - y[k])` on its inner side.
+    slope: [f32; 3],
+    side: [i8; 3],
+    flat: [f32; 3],
     pub id: u32,
     x_lo: i32,
     x_hi: i32,
@@ -169,13 +185,29 @@ impl ScreenTri {
             return None;
         }
         let (dq1, dq2) = (q[1] - q[0], q[2] - q[0]);
+        let sign = area2.signum();
+        let (mut slope, mut side, mut flat) = ([0.0; 3], [0i8; 3], [0.0; 3]);
+        for k in 0..3 {
+            let j = (k + 1) % 3;
+            let (dx, dy) = (x[j] - x[k], y[j] - y[k]);
+            // Inside: sign * (dx (y - ay) - dy (x - ax)) >= 0.
+            let m = sign * dy;
+            if m != 0.0 {
+                slope[k] = dx / dy;
+                side[k] = if m > 0.0 { 1 } else { -1 };
+            } else {
+                flat[k] = sign * dx;
+            }
+        }
         Some(Self {
             x,
             y,
             q0: q[0],
             qx: (dq1 * dy2 - dq2 * dy1) / area2,
             qy: (dq2 * dx1 - dq1 * dx2) / area2,
-            sign: area2.signum(),
+            slope,
+            side,
+            flat,
             id,
             x_lo,
             x_hi,
@@ -188,18 +220,15 @@ impl ScreenTri {
     fn span(&self, py: f32) -> Option<(i32, i32)> {
         let (mut lo, mut hi) = (self.x_lo as f32, self.x_hi as f32);
         for k in 0..3 {
-            let j = (k + 1) % 3;
-            let (ax, ay) = (self.x[k], self.y[k]);
-            let (dx, dy) = (self.x[j] - ax, self.y[j] - ay);
-            // Inside: sign * (dx (y - ay) - dy (x - ax)) >= 0  <=>  m x <= c.
-            let m = self.sign * dy;
-            let c = self.sign * (dx * (py - ay) + dy * ax);
-            if m > 0.0 {
-                hi = hi.min(c / m + EDGE_EPS);
-            } else if m < 0.0 {
-                lo = lo.max(c / m - EDGE_EPS);
-            } else if c < 0.0 {
-                return None;
+            let dy = py - self.y[k];
+            match self.side[k] {
+                1 => hi = hi.min(self.x[k] + self.slope[k] * dy + EDGE_EPS),
+                -1 => lo = lo.max(self.x[k] + self.slope[k] * dy - EDGE_EPS),
+                _ => {
+                    if self.flat[k] * dy < 0.0 {
+                        return None;
+                    }
+                }
             }
         }
         let (a, b) = (ceil_i(lo), floor_i(hi));
@@ -240,16 +269,17 @@ fn project(view: &View, c: [[f32; 3]; 3], id: u32, out: &mut Vec<ScreenTri>) {
         return;
     }
     let emit = |poly: &[[f32; 3]], out: &mut Vec<ScreenTri>| {
-        let s = poly.iter().map(|p| {
+        // At most four corners (a triangle clipped by one plane): no allocation.
+        let mut s = [(0.0f32, 0.0f32, 0.0f32); 4];
+        for (s, p) in s.iter_mut().zip(poly) {
             let iz = 1.0 / p[2];
-            (
+            *s = (
                 view.fx * p[0] * iz + view.cx,
                 view.fy * p[1] * iz + view.cy,
                 iz,
-            )
-        });
-        let s: Vec<(f32, f32, f32)> = s.collect();
-        for k in 1..s.len() - 1 {
+            );
+        }
+        for k in 1..poly.len() - 1 {
             let v = [s[0], s[k], s[k + 1]];
             if let Some(tri) = ScreenTri::new(
                 v.map(|p| p.0),
@@ -268,18 +298,21 @@ fn project(view: &View, c: [[f32; 3]; 3], id: u32, out: &mut Vec<ScreenTri>) {
         return;
     }
     // Sutherland-Hodgman against z = NEAR.
-    let mut poly: Vec<[f32; 3]> = Vec::with_capacity(4);
+    let mut poly = [[0.0f32; 3]; 4];
+    let mut len = 0;
     for k in 0..3 {
         let (a, b) = (c[k], c[(k + 1) % 3]);
         if inside[k] {
-            poly.push(a);
+            poly[len] = a;
+            len += 1;
         }
         if inside[k] != inside[(k + 1) % 3] {
             let f = (NEAR_M - a[2]) / (b[2] - a[2]);
-            poly.push([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), NEAR_M]);
+            poly[len] = [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), NEAR_M];
+            len += 1;
         }
     }
-    emit(&poly, out);
+    emit(&poly[..len], out);
 }
 
 /// For every band of `band_rows` rows, the indices of the triangles overlapping it.

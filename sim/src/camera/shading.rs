@@ -58,20 +58,13 @@ fn sq(c: [f32; 3]) -> [f32; 3] {
     c.map(|x| x * x)
 }
 
-fn cross(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 impl Shader<'_> {
     pub fn shade(&self, u: usize, v: usize, id: u32, inv_z: f32) -> Shaded {
         let d = self.view.ray(u as f32, v as f32);
         let len = dot(&d, &d).sqrt();
+        let inv_len = 1.0 / len;
         if id == u32::MAX {
-            let unit = d.map(|x| x / len);
+            let unit = d.map(|x| x * inv_len);
             return Shaded {
                 rgb: tree_line(&unit).map_or_else(
                     || sky(unit[2]),
@@ -87,50 +80,41 @@ impl Shader<'_> {
             };
         }
         let tri = &self.chunks.tris[id as usize];
-        let [a, b, c] = tri.p;
-        // Möller-Trumbore without rejection: the rasterizer already chose this triangle;
-        // with `d` scaled to optical z = 1, `t` is the depth.
-        let e1 = sub(&b, &a);
-        let e2 = sub(&c, &a);
-        let p = cross(&d, &e2);
-        let det = dot(&e1, &p);
+        let a = tri.p[0];
         let o = self.view.origin;
-        let (depth, w1, w2) = if det.abs() > 1e-12 {
-            let inv = 1.0 / det;
-            let s = sub(&o, &a);
-            let q = cross(&s, &e1);
-            (dot(&e2, &q) * inv, dot(&s, &p) * inv, dot(&d, &q) * inv)
-        } else {
-            (1.0 / inv_z, 1.0 / 3.0, 1.0 / 3.0)
-        };
+        // The ray meets the triangle's plane at `o + depth d`; with `d` scaled to optical
+        // z = 1, `depth` is the optical-axis depth. The barycentric weights come from the
+        // triangle's precomputed weight gradients.
+        let mut n = tri.n;
+        let facing = dot(&n, &d);
+        let ao = sub(&a, &o);
+        let depth = dot(&n, &ao) / facing;
         // Seen edge-on, the plane intersection is unreliable: fall back to the raster depth.
         let depth = if depth.is_finite() && depth > 0.0 {
             depth
         } else {
             1.0 / inv_z
         };
-        let w1 = w1.clamp(0.0, 1.0);
-        let w2 = w2.clamp(0.0, 1.0 - w1);
+        // `g · (o + depth d - a)`, arranged so that only the last step waits for the division.
+        let [g1, g2] = &tri.g;
+        let w1 = (depth * dot(g1, &d) - dot(g1, &ao)).clamp(0.0, 1.0);
+        let w2 = (depth * dot(g2, &d) - dot(g2, &ao)).clamp(0.0, 1.0 - w1);
         let w = [1.0 - w1 - w2, w1, w2];
-        let mut n = cross(&e1, &e2);
-        let nl = dot(&n, &n).sqrt().max(1e-20);
-        n = n.map(|x| x / nl);
-        let facing = dot(&n, &d);
         let back = facing > 0.0;
         if back {
             n = n.map(|x| -x);
         }
-        let cos_incidence = (facing.abs() / len).min(1.0);
+        let cos_incidence = (facing.abs() * inv_len).min(1.0);
         let t = [0, 1, 2].map(|k| w[0] * tri.t[0][k] + w[1] * tri.t[1][k] + w[2] * tri.t[2][k]);
         let surface = Surface {
             material: tri.material,
             t,
             w,
-            corners: tri.t,
+            k: tri.k,
             back,
             // Geometric mean of the footprint's axes: at grazing angles it is stretched in
             // one direction only, and blurring both would wash the ground out.
-            footprint: depth * len / (self.view.fx * cos_incidence.max(0.05).sqrt()),
+            per_m: self.view.fx * cos_incidence.max(0.05).sqrt() / (depth * len),
         };
         let base = sq(albedo(&surface));
         let point = [0, 1, 2].map(|k| o[k] + depth * d[k]);

@@ -11,6 +11,7 @@ use crate::world::Material;
 
 /// Texel size of the map, metres.
 const TEXEL_M: f32 = 0.015;
+const PER_TEXEL: f32 = 1.0 / TEXEL_M;
 /// Largest side of the map, texels.
 const MAX_SIDE: usize = 4096;
 /// Depth bias towards the sun, metres: keeps lit surfaces from shadowing themselves.
@@ -29,7 +30,8 @@ pub(crate) struct ShadowMap {
     /// `[w_min, w_min + 65535 * w_step]` (0: none).
     top: Vec<u16>,
     w_min: f32,
-    w_step: f32,
+    /// `1 / w_step`.
+    per_step: f32,
 }
 
 impl ShadowMap {
@@ -69,7 +71,7 @@ impl ShadowMap {
                 height: 0,
                 top: Vec::new(),
                 w_min: 0.0,
-                w_step: 1.0,
+                per_step: 1.0,
             };
         }
         let origin = [lo[0] - 2.0 * TEXEL_M, lo[1] - 2.0 * TEXEL_M];
@@ -124,14 +126,14 @@ impl ShadowMap {
             height,
             top,
             w_min,
-            w_step,
+            per_step: 1.0 / w_step,
         }
     }
 
     /// Fraction of the sun seen from world point `p`, in [0, 1].
     pub fn lit(&self, p: &[f32; 3]) -> f32 {
-        let x = (dot(&self.u, p) - self.origin[0]) / TEXEL_M - 0.5;
-        let y = (dot(&self.v, p) - self.origin[1]) / TEXEL_M - 0.5;
+        let x = (dot(&self.u, p) - self.origin[0]) * PER_TEXEL - 0.5;
+        let y = (dot(&self.v, p) - self.origin[1]) * PER_TEXEL - 0.5;
         if x < 0.0 || y < 0.0 {
             return 1.0;
         }
@@ -143,7 +145,7 @@ impl ShadowMap {
         let (fx, fy) = (x - x0, y - y0);
         let k = y0 as usize * self.width + x0 as usize;
         // The receiver's height in the same quantisation.
-        let h = (dot(&self.w, p) + BIAS_M - self.w_min) / self.w_step + 1.0;
+        let h = (dot(&self.w, p) + BIAS_M - self.w_min) * self.per_step + 1.0;
         let lit = |i: usize| if f32::from(self.top[i]) > h { 0.0 } else { 1.0 };
         let a = lit(k) * (1.0 - fx) + lit(k + 1) * fx;
         let b = lit(k + self.width) * (1.0 - fx) + lit(k + self.width + 1) * fx;

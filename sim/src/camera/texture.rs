@@ -12,26 +12,57 @@ pub(crate) struct Surface {
     pub t: [f32; 3],
     /// Barycentric weights of the triangle's corners.
     pub w: [f32; 3],
-    /// The triangle's corners in texture space.
-    pub corners: [[f32; 3]; 3],
+    /// Per-triangle constants of the material (see [`TriConstants`]).
+    pub k: TriConstants,
     /// The camera sees the triangle's back face.
     pub back: bool,
-    /// Size of the pixel's footprint on the surface, metres: detail finer than about two
-    /// footprints is left out (it would only alias).
-    pub footprint: f32,
+    /// Inverse size of the pixel's footprint on the surface (footprints per metre): detail
+    /// finer than about two footprints is left out (it would only alias).
+    pub per_m: f32,
 }
 
-/// Weight of a noise octave of wavelength `period_m` at pixel footprint `footprint`: 1
-/// when resolved, fading to 0 (the octave's mean) below ~2 pixels per period.
-fn octave(period_m: f32, footprint: f32) -> f32 {
-    ((period_m / footprint - 2.0) * 0.5).clamp(0.0, 1.0)
+/// What the materials need from a triangle that does not change across it, computed once
+/// per world: for a leaf, which corner is the tip and the leaf's tone.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TriConstants {
+    /// The leaf's tip corner (1 or 2; the other is its side corner).
+    pub tip: u8,
+    /// One tone per leaf in [0, 1), from its petiole end's plant-local position.
+    pub tone: f32,
+}
+
+impl TriConstants {
+    /// From a triangle's material and corners in texture space.
+    pub fn new(material: Material, corners: &[[f32; 3]; 3]) -> Self {
+        if material != Material::Leaf {
+            return Self::default();
+        }
+        // Corner 0 is the petiole end; the tip is the corner farther from it, the other the
+        // leaf's side corner (see `world::shapes::leaf`).
+        let d = |k: usize| {
+            let a = corners[0];
+            let b = corners[k];
+            (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+        };
+        let c0 = corners[0].map(|c| floor(c * 500.0).1);
+        Self {
+            tip: if d(1) > d(2) { 1 } else { 2 },
+            tone: hash(c0[0], c0[1], c0[2], 41),
+        }
+    }
+}
+
+/// Weight of a noise octave of wavelength `period_m` at `per_m` pixel footprints per metre:
+/// 1 when resolved, fading to 0 (the octave's mean) below ~2 pixels per period.
+fn octave(period_m: f32, per_m: f32) -> f32 {
+    ((period_m * per_m - 2.0) * 0.5).clamp(0.0, 1.0)
 }
 
 pub(crate) fn albedo(s: &Surface) -> [f32; 3] {
     match s.material {
-        Material::Soil => soil(s.t, s.footprint),
-        Material::Grass => grass(s.t, s.footprint),
-        Material::Bark => bark(s.t, s.footprint),
+        Material::Soil => soil(s.t, s.per_m),
+        Material::Grass => grass(s.t, s.per_m),
+        Material::Bark => bark(s.t, s.per_m),
         Material::Leaf => leaf(s),
         Material::Grape => grape(s.t),
         Material::Post => post(s.t),
@@ -121,22 +152,22 @@ fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
 /// Tilled soil: brown with low-contrast large patches, fine crumbs, a few clods, scattered
 /// stones and sparse weeds. World space: it differs along a row, but less than the vines
 /// repeat.
-fn soil(t: [f32; 3], footprint: f32) -> [f32; 3] {
+fn soil(t: [f32; 3], per_m: f32) -> [f32; 3] {
     let (x, y) = (t[0], t[1]);
     let large = noise2(x * 0.7, y * 0.7, 1);
     let mut k = 0.88 + 0.16 * large;
-    let w_mid = octave(0.12, footprint);
+    let w_mid = octave(0.12, per_m);
     let mid = if w_mid > 0.0 {
         noise2(x * 8.0, y * 8.0, 2)
     } else {
         0.5
     };
     k += 0.10 * (mid - 0.5) * w_mid;
-    let w_fine = octave(0.025, footprint);
+    let w_fine = octave(0.025, per_m);
     if w_fine > 0.0 {
         k += 0.24 * (noise2(x * 40.0, y * 40.0, 3) - 0.5) * w_fine;
     }
-    let w_grain = octave(0.008, footprint);
+    let w_grain = octave(0.008, per_m);
     if w_grain > 0.0 {
         k += 0.14 * (noise2(x * 130.0, y * 130.0, 4) - 0.5) * w_grain;
     }
@@ -165,7 +196,7 @@ fn soil(t: [f32; 3], footprint: f32) -> [f32; 3] {
     }
     let crack = (mid - 0.5).abs();
     if crack < 0.012 {
-        c = scale(c, 1.0 - (0.18 - 15.0 * crack) * octave(0.02, footprint));
+        c = scale(c, 1.0 - (0.18 - 15.0 * crack) * octave(0.02, per_m));
     }
     // Stones: one candidate per 9 cm cell.
     let (sx, sy) = (x / 0.09, y / 0.09);
@@ -196,10 +227,10 @@ fn soil(t: [f32; 3], footprint: f32) -> [f32; 3] {
 }
 
 /// Grass: green blades (streaks) with yellowish dry patches.
-fn grass(t: [f32; 3], footprint: f32) -> [f32; 3] {
+fn grass(t: [f32; 3], per_m: f32) -> [f32; 3] {
     let (x, y) = (t[0], t[1]);
     let patch = noise2(x * 0.6, y * 0.6, 21);
-    let w = octave(0.015, footprint);
+    let w = octave(0.015, per_m);
     let blades = if w > 0.0 {
         0.5 + (noise2(x * 90.0, y * 30.0, 22) - 0.5) * w
     } else {
@@ -216,11 +247,11 @@ fn grass(t: [f32; 3], footprint: f32) -> [f32; 3] {
 
 /// Vine bark: grey-brown with long dark fissures along the wood (ridged noise stretched
 /// along z for trunks, the furrows of cordons come out shorter) and lighter shreds.
-fn bark(t: [f32; 3], footprint: f32) -> [f32; 3] {
+fn bark(t: [f32; 3], per_m: f32) -> [f32; 3] {
     let n = noise3([t[0] * 80.0, t[1] * 80.0, t[2] * 9.0], 31);
     let ridge = (n - 0.5).abs();
     let mut c = scale([0.40, 0.32, 0.25], 0.8 + 0.5 * ridge);
-    let w = octave(0.012, footprint);
+    let w = octave(0.012, per_m);
     if ridge < 0.07 {
         c = scale(c, 1.0 - (0.55 - 7.0 * ridge) * w.max(0.4));
     }
@@ -233,19 +264,11 @@ fn bark(t: [f32; 3], footprint: f32) -> [f32; 3] {
 /// A vine leaf: green varying from leaf to leaf (a function of the plant-local position,
 /// so clones match), a lighter midrib and palmate main veins, paler underside.
 fn leaf(s: &Surface) -> [f32; 3] {
-    // Corner 0 is the petiole end; the tip is the corner farther from it, the other the
-    // leaf's side corner (see `world::shapes::leaf`).
-    let d = |k: usize| {
-        let a = s.corners[0];
-        let b = s.corners[k];
-        (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
-    };
-    let (tip, side) = if d(1) > d(2) { (1, 2) } else { (2, 1) };
+    let (tip, side) = if s.k.tip == 1 { (1, 2) } else { (2, 1) };
     let across = s.w[side];
     let along = s.w[tip] + 0.45 * s.w[side];
-    // One tone per leaf (from its petiole end's plant-local position), flecks on the blade.
-    let c0 = s.corners[0].map(|c| floor(c * 500.0).1);
-    let tone = hash(c0[0], c0[1], c0[2], 41);
+    // One tone per leaf, flecks on the blade.
+    let tone = s.k.tone;
     let fleck = noise2(along * 14.0, across * 9.0 + tone * 50.0, 42);
     let mut c = mix([0.22, 0.40, 0.10], [0.42, 0.52, 0.16], tone);
     c = scale(c, 0.9 + 0.2 * fleck);

@@ -115,72 +115,46 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
     // Shoots: a stub at dormancy, growing to the canopy top by stage 3.
     let max_shoot = (layout.canopy_top_m - layout.cordon_height_m).max(0.1);
     let shoot_length = (0.05 + (max_shoot - 0.05) * ramp(g, 0.5, 3.0)) as f32;
-    let leaf_size = (0.04 + 0.10 * ramp(g, 1.0, 3.5)) as f32;
+    // From stage 3 to 4 the canopy closes into a leaf wall, as a VSP canopy at full growth
+    // (about 15 shoots per metre of row, two to four leaf layers): each spur's second bud
+    // grows a shoot, laterals multiply and leaves reach full size. Nothing of this exists
+    // up to stage 3, whose plants are unchanged.
+    let full = ramp(g, 3.0, 4.0);
+    let leaf_size = (0.04 + 0.10 * ramp(g, 1.0, 3.5) + FULL_LEAF_GAIN_M * full) as f32;
     let leaf_spacing = 0.075f32;
     let canopy_spread = (0.06 + 0.18 * ramp(g, 1.0, 3.5)) as f32;
+    let lateral_ramp = (g - 2.5) / 1.5;
+    let extra_laterals_per_node = FULL_LATERALS_PER_NODE * full;
+    let lateral_size = (0.7 + 0.2 * full) as f32;
+    let buds = if full > 0.0 { 2 } else { 1 };
     for &base in &spur_points {
-        let length = shoot_length * rng.range(0.8, 1.1);
-        let lean = Vector3::new(rng.jitter(0.15), rng.jitter(0.2), 1.0).normalize();
-        let tip = base + lean * length;
-        let mid =
-            base + lean * (0.5 * length) + Vector3::new(rng.jitter(0.03), rng.jitter(0.04), 0.0);
-        polyline_tube(
-            &mut mesh,
-            &[base, mid, tip],
-            if g < 0.5 { 0.012 } else { 0.007 },
-            4,
-            Material::Bark,
-        );
-        if g < 0.8 {
-            continue;
-        }
-        // Alternate leaves at the nodes, pushed out of the row plane by their petioles.
-        let nodes = (length / leaf_spacing).floor() as usize;
-        for n in 0..nodes {
-            let along = (n as f32 + 0.6) * leaf_spacing;
-            let at = base + lean * along;
-            let side_sign = if n % 2 == 0 { 1.0 } else { -1.0 };
-            let out = Vector3::new(rng.jitter(0.5), side_sign, rng.range(-0.2, 0.4)).normalize();
-            let petiole = canopy_spread * rng.range(0.3, 1.0);
-            let anchor = at + out * petiole;
-            let droop =
-                Vector3::new(rng.jitter(0.6), out.y * 0.4, rng.range(-1.0, 0.2)).normalize();
-            let side = droop
-                .cross(&Vector3::new(rng.jitter(0.3), rng.jitter(0.3), 1.0))
-                .try_normalize(1e-6);
-            let side = side.unwrap_or_else(Vector3::x);
-            leaf(
+        for bud in 0..buds {
+            // The second bud's shoot grows from stage 3 and starts a little along the spur.
+            let (base, grown) = if bud == 0 {
+                (base, 1.0)
+            } else {
+                (
+                    base + Vector3::new(rng.jitter(0.03), rng.jitter(0.03), 0.02),
+                    full as f32,
+                )
+            };
+            shoot(
                 &mut mesh,
-                anchor,
-                droop,
-                side,
-                leaf_size * rng.range(0.7, 1.15),
-                rng.range(0.1, 0.4),
+                rng,
+                &Shoot {
+                    base,
+                    length: shoot_length * grown,
+                    thick: g < 0.5,
+                    leaves: g >= 0.8,
+                    leaf_spacing,
+                    leaf_size,
+                    canopy_spread,
+                    lateral_ramp,
+                    extra_laterals_per_node,
+                    lateral_size,
+                    laterals: g > 2.5,
+                },
             );
-        }
-        // Lateral shoots' small leaves fill the canopy from stage 2.5 on.
-        if g > 2.5 {
-            let laterals = ((g - 2.5) / 1.5 * nodes as f64 * 0.6).round() as usize;
-            for _ in 0..laterals {
-                let at = base + lean * (length * rng.range(0.15, 0.95));
-                let out =
-                    Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.jitter(0.5)).normalize();
-                let anchor = at + out * (canopy_spread * rng.range(0.2, 1.0));
-                let dir = Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.range(-1.0, 0.3))
-                    .normalize();
-                let side = dir
-                    .cross(&out)
-                    .try_normalize(1e-6)
-                    .unwrap_or_else(Vector3::y);
-                leaf(
-                    &mut mesh,
-                    anchor,
-                    dir,
-                    side,
-                    0.7 * leaf_size * rng.range(0.7, 1.1),
-                    0.2,
-                );
-            }
         }
     }
 
@@ -194,6 +168,99 @@ pub fn vine(layout: &VineLayout, rng: &mut PlantRng) -> Mesh {
         }
     }
     mesh
+}
+
+/// Leaf size added from stage 3 to 4 (m): full-grown leaves.
+const FULL_LEAF_GAIN_M: f64 = 0.03;
+/// Lateral leaves per main-shoot node added from stage 3 to 4.
+const FULL_LATERALS_PER_NODE: f64 = 1.5;
+
+/// One shoot's parameters (see [`vine`]).
+#[derive(Debug, Clone, Copy)]
+struct Shoot {
+    base: Point3<f32>,
+    length: f32,
+    /// A dormant spur's stub (thicker than a green shoot).
+    thick: bool,
+    /// Whether it carries leaves yet.
+    leaves: bool,
+    leaf_spacing: f32,
+    leaf_size: f32,
+    canopy_spread: f32,
+    /// Whether lateral shoots' leaves have started; their count per node is
+    /// `0.6 lateral_ramp + extra_laterals_per_node`.
+    laterals: bool,
+    lateral_ramp: f64,
+    extra_laterals_per_node: f64,
+    /// Lateral leaves' size relative to the main leaves.
+    lateral_size: f32,
+}
+
+/// A shoot with its alternate leaves and its laterals' leaves.
+fn shoot(mesh: &mut Mesh, rng: &mut PlantRng, s: &Shoot) {
+    let base = s.base;
+    let length = s.length * rng.range(0.8, 1.1);
+    let lean = Vector3::new(rng.jitter(0.15), rng.jitter(0.2), 1.0).normalize();
+    let tip = base + lean * length;
+    let mid = base + lean * (0.5 * length) + Vector3::new(rng.jitter(0.03), rng.jitter(0.04), 0.0);
+    polyline_tube(
+        mesh,
+        &[base, mid, tip],
+        if s.thick { 0.012 } else { 0.007 },
+        4,
+        Material::Bark,
+    );
+    if !s.leaves {
+        return;
+    }
+    // Alternate leaves at the nodes, pushed out of the row plane by their petioles.
+    let nodes = (length / s.leaf_spacing).floor() as usize;
+    for n in 0..nodes {
+        let along = (n as f32 + 0.6) * s.leaf_spacing;
+        let at = base + lean * along;
+        let side_sign = if n % 2 == 0 { 1.0 } else { -1.0 };
+        let out = Vector3::new(rng.jitter(0.5), side_sign, rng.range(-0.2, 0.4)).normalize();
+        let petiole = s.canopy_spread * rng.range(0.3, 1.0);
+        let anchor = at + out * petiole;
+        let droop = Vector3::new(rng.jitter(0.6), out.y * 0.4, rng.range(-1.0, 0.2)).normalize();
+        let side = droop
+            .cross(&Vector3::new(rng.jitter(0.3), rng.jitter(0.3), 1.0))
+            .try_normalize(1e-6);
+        let side = side.unwrap_or_else(Vector3::x);
+        leaf(
+            mesh,
+            anchor,
+            droop,
+            side,
+            s.leaf_size * rng.range(0.7, 1.15),
+            rng.range(0.1, 0.4),
+        );
+    }
+    // Lateral shoots' small leaves fill the canopy from stage 2.5 on.
+    if s.laterals {
+        let nodes = nodes as f64;
+        let laterals =
+            (s.lateral_ramp * nodes * 0.6 + s.extra_laterals_per_node * nodes).round() as usize;
+        for _ in 0..laterals {
+            let at = base + lean * (length * rng.range(0.15, 0.95));
+            let out = Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.jitter(0.5)).normalize();
+            let anchor = at + out * (s.canopy_spread * rng.range(0.2, 1.0));
+            let dir =
+                Vector3::new(rng.jitter(1.0), rng.jitter(1.0), rng.range(-1.0, 0.3)).normalize();
+            let side = dir
+                .cross(&out)
+                .try_normalize(1e-6)
+                .unwrap_or_else(Vector3::y);
+            leaf(
+                mesh,
+                anchor,
+                dir,
+                side,
+                s.lateral_size * s.leaf_size * rng.range(0.7, 1.1),
+                0.2,
+            );
+        }
+    }
 }
 
 #[cfg(test)]
@@ -250,5 +317,62 @@ mod tests {
             top > 1.6,
             "full canopy reaches the catch wires, top at {top}"
         );
+    }
+
+    /// Share of horizontal lines of sight across the row (perpendicular to it, through the
+    /// middle plant of five in a row, heights 1.0-1.8 m: the leaf wall between the wires)
+    /// that pass through the canopy without hitting anything.
+    fn gap_fraction(g: f64, variation: f64) -> f64 {
+        use crate::raycast::{Bvh, RayCaster};
+        let mut row = Mesh::new();
+        for i in 0..5 {
+            let own = stream(2, &format!("own/{i}"));
+            let mut rng = PlantRng::new(stream(2, "clone"), own, variation);
+            let mut plant = vine(&layout(g), &mut rng);
+            let dx = Vector3::new(i as f32 - 2.0, 0.0, 0.0);
+            plant.vertices.iter_mut().for_each(|p| *p += dx);
+            row.append(&plant);
+        }
+        let bvh = Bvh::build(&row);
+        let (mut rays, mut gaps) = (0usize, 0usize);
+        for ix in 0..100 {
+            for iz in 0..80 {
+                let x = -0.5 + (ix as f32 + 0.5) / 100.0;
+                let z = 1.0 + (iz as f32 + 0.5) / 100.0;
+                let origin = Point3::new(x, -1.5, z);
+                rays += 1;
+                if bvh.cast(&origin, &Vector3::y(), 0.0, 3.0).is_none() {
+                    gaps += 1;
+                }
+            }
+        }
+        gaps as f64 / rays as f64
+    }
+
+    #[test]
+    fn full_canopy_is_a_closed_leaf_wall() {
+        // Before: the stage-4 canopy let the sky through (a sparse screen of single leaves),
+        // where a vertically shoot-positioned vineyard at full growth is a closed wall.
+        let gaps: Vec<f64> = [2.0, 3.0, 4.0]
+            .iter()
+            .map(|&g| gap_fraction(g, 0.0))
+            .collect();
+        let varied = gap_fraction(4.0, 1.0);
+        eprintln!(
+            "gap fraction at stages 2, 3, 4: {gaps:?}, stage 4 varied: {varied}; triangles \
+             per plant at stage 3: {}, 4: {}",
+            build(3.0).triangle_count(),
+            build(4.0).triangle_count()
+        );
+        assert!(
+            gaps[0] > gaps[1] && gaps[1] > gaps[2],
+            "expected the canopy to close with stage: {gaps:?}"
+        );
+        for (what, gap) in [("clones", gaps[2]), ("varied plants", varied)] {
+            assert!(
+                gap < 0.12,
+                "expected under 12 % gaps in the full canopy of {what}, got {gap}"
+            );
+        }
     }
 }
