@@ -304,9 +304,8 @@ fn ate(folder: &Path, file: &str) -> f64 {
 }
 
 /// Guards loop closure end to end: in S1 the robot comes back along the row it went down;
-/// the plugin, loaded from its `.so` by the host, must accept loop closures there, and the
-/// optimised trajectory must beat both its own online estimate and the same plugin with
-/// loop closure off.
+/// the plugin, loaded from its `.so` by the host, must accept loop closures there, and its
+/// optimised trajectory must beat the same plugin's with loop closure off.
 #[test]
 fn a_loop_is_closed_in_s1_and_the_error_drops() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -334,15 +333,14 @@ fn a_loop_is_closed_in_s1_and_the_error_drops() {
     );
 
     let final_with = ate(&with, "estimate.tum");
-    let online_with = ate(&with, "online.tum");
     let final_without = ate(&without, "estimate.tum");
     assert!(
-        final_with < 0.08,
+        final_with < 0.06,
         "ATE with loop closures {final_with:.4} m"
     );
     assert!(
-        final_with < final_without && final_with < online_with,
-        "loop closures must lower the error: final {final_with:.4} m, online {online_with:.4} m, without loops {final_without:.4} m"
+        final_with < 0.8 * final_without,
+        "loop closures must lower the error: {final_with:.4} m with, {final_without:.4} m without"
     );
     let metrics = json(&with.join("metrics.json"));
     assert!(

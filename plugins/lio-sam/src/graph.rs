@@ -67,14 +67,11 @@ impl KeyframeGraph {
         samples: Vec<ImuSample>,
     ) -> Result<(), BackendError> {
         let k = self.registered.len() as u64;
-        let initial = match k {
-            0 => registered,
-            _ => {
-                let prev = self.pose(k as usize - 1);
-                prev * (self.registered[k as usize - 1].inverse() * registered)
-            }
-        };
-        self.backend.insert(Var::Pose(k), Value::Pose(initial))?;
+        // The sweep was registered to a map built from the current estimates, so it is in
+        // their frame: its initial value is the registration itself, and the odometry
+        // factor joins it to the previous keyframe's current estimate, as LIO-SAM's
+        // addOdomFactor does (not to where that keyframe was first registered).
+        self.backend.insert(Var::Pose(k), Value::Pose(registered))?;
         if k == 0 {
             let tight = Vector6::repeat(1e-3);
             self.backend.add(Factor::PosePrior {
@@ -83,7 +80,7 @@ impl KeyframeGraph {
                 sigmas: tight,
             })?;
         } else {
-            let from_from_to = self.registered[k as usize - 1].inverse() * registered;
+            let from_from_to = self.pose(k as usize - 1).inverse() * registered;
             self.backend.add(Factor::Between {
                 from: k - 1,
                 to: k,
