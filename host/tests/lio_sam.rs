@@ -8,7 +8,8 @@ use std::process::Command;
 use lio_sam::config::{FeatureConfig, MappingConfig};
 use lio_sam::deskew::{SweepLayout, rings};
 use lio_sam::features::extract;
-use lio_sam::local_map::{LocalMap, MapKeyframe};
+use lio_sam::keyframe::KeyframeView;
+use lio_sam::local_map::LocalMap;
 use lio_sam::motion::{ImuQueue, Motion, propagate};
 use lio_sam::registration::register;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -17,6 +18,7 @@ use sim::sensors::{LidarScan, Message};
 use sim::{SensorSet, SimConfig, Simulation};
 use slam_common::backend::ImuBias;
 use slam_common::imu::{NavState, Preintegrated};
+use vinebench::runner::worker::plugin_point;
 
 fn sensors(imu: bool, lidar: bool) -> SensorSet {
     SensorSet {
@@ -27,17 +29,7 @@ fn sensors(imu: bool, lidar: bool) -> SensorSet {
 }
 
 fn plugin_points(scan: &LidarScan) -> Vec<plugin_api::LidarPoint> {
-    scan.points
-        .iter()
-        .map(|p| plugin_api::LidarPoint {
-            x: p.x,
-            y: p.y,
-            z: p.z,
-            intensity: p.intensity,
-            time_s: p.time_s,
-            ring: p.ring,
-        })
-        .collect()
+    scan.points.iter().map(plugin_point).collect()
 }
 
 /// The IMU's pose and velocity at `t_ns`, from the ground-truth trajectory.
@@ -190,9 +182,9 @@ fn deskewing_improves_registration_on_a_turning_scan() {
         yaw_over_sweep > 2.0,
         "the sweep must turn noticeably, turned {yaw_over_sweep}°"
     );
-    let keyframes: Vec<MapKeyframe<'_>> = before
+    let keyframes: Vec<KeyframeView<'_>> = before
         .iter()
-        .map(|(t, f)| MapKeyframe {
+        .map(|(t, f)| KeyframeView {
             stamp_ns: *t,
             world_from_lidar: world_from_lidar(*t),
             features: f,

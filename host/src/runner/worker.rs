@@ -130,6 +130,18 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
 
 /// A pose must be finite with a unit quaternion: an invalid one fails the run, it is
 /// never evaluated.
+/// A simulated lidar point as plugins receive it.
+pub fn plugin_point(p: &sim::sensors::LidarPoint) -> LidarPoint {
+    LidarPoint {
+        x: p.x,
+        y: p.y,
+        z: p.z,
+        intensity: p.intensity,
+        time_s: p.time_s,
+        ring: p.ring,
+    }
+}
+
 fn check(pose: &Pose, what: &str) -> anyhow::Result<()> {
     if pose.isometry().is_none() {
         bail!(
@@ -161,14 +173,7 @@ fn deliver(
         }),
         Message::Lidar(scan) => {
             points.clear();
-            points.extend(scan.points.iter().map(|p| LidarPoint {
-                x: p.x,
-                y: p.y,
-                z: p.z,
-                intensity: p.intensity,
-                time_s: p.time_s,
-                ring: p.ring,
-            }));
+            points.extend(scan.points.iter().map(plugin_point));
             instance.on_point_cloud(&plugin_api::PointCloud {
                 stamp_ns: scan.stamp_ns,
                 sensor: "lidar",

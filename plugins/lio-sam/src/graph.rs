@@ -25,8 +25,7 @@ pub struct KeyframeGraph {
     backend: Box<dyn Backend>,
     imu_noise: Option<ImuNoise>,
     odometry_sigmas: Vector6<f64>,
-    /// The registered (front-end) pose of each keyframe, for odometry factors.
-    registered: Vec<Isometry3<f64>>,
+    keyframes: usize,
     pub timings: Vec<UpdateTiming>,
 }
 
@@ -44,17 +43,17 @@ impl KeyframeGraph {
             odometry_sigmas: Vector6::new(
                 sigma_rad, sigma_rad, sigma_rad, sigma_m, sigma_m, sigma_m,
             ),
-            registered: Vec::new(),
+            keyframes: 0,
             timings: Vec::new(),
         })
     }
 
     pub fn len(&self) -> usize {
-        self.registered.len()
+        self.keyframes
     }
 
     pub fn is_empty(&self) -> bool {
-        self.registered.is_empty()
+        self.keyframes == 0
     }
 
     /// Adds keyframe `len()` at its registered pose, with the IMU samples since the previous
@@ -66,7 +65,7 @@ impl KeyframeGraph {
         bias: ImuBias,
         samples: Vec<ImuSample>,
     ) -> Result<(), BackendError> {
-        let k = self.registered.len() as u64;
+        let k = self.keyframes as u64;
         // The sweep was registered to a map built from the current estimates, so it is in
         // their frame: its initial value is the registration itself, and the odometry
         // factor joins it to the previous keyframe's current estimate, as LIO-SAM's
@@ -114,7 +113,7 @@ impl KeyframeGraph {
                 })?;
             }
         }
-        self.registered.push(registered);
+        self.keyframes += 1;
         self.update(Scope::Incremental)
     }
 
@@ -150,9 +149,11 @@ impl KeyframeGraph {
         Ok(())
     }
 
-    /// The estimate of keyframe `k`'s `world_from_imu`.
+    /// The estimate of keyframe `k`'s `world_from_imu` (`k` below `len()`).
     pub fn pose(&self, k: usize) -> Isometry3<f64> {
-        self.backend.pose(k as u64).unwrap_or(self.registered[k])
+        self.backend
+            .pose(k as u64)
+            .expect("every keyframe's pose is inserted by add_keyframe")
     }
 
     pub fn velocity(&self, k: usize) -> Option<Vector3<f64>> {

@@ -4,12 +4,12 @@
 //! estimates, voxel-downsampled and put in k-d trees. It is rebuilt only when the
 //! keyframes or their estimates change.
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 use slam_common::kdtree::KdTree;
 use slam_common::voxel::downsample;
 
 use crate::config::MappingConfig;
-use crate::features::Features;
+use crate::keyframe::KeyframeView;
 
 /// Feature maps in the world frame.
 #[derive(Debug, Clone, Default)]
@@ -18,17 +18,9 @@ pub struct LocalMap {
     pub surfs: KdTree,
 }
 
-/// A keyframe as the map needs it: when, where the lidar was, and its features.
-#[derive(Debug, Clone, Copy)]
-pub struct MapKeyframe<'a> {
-    pub stamp_ns: i64,
-    pub world_from_lidar: Isometry3<f64>,
-    pub features: &'a Features,
-}
-
 impl LocalMap {
     /// Builds the map around the last of `keyframes`.
-    pub fn build(keyframes: &[MapKeyframe<'_>], cfg: &MappingConfig) -> Self {
+    pub fn build(keyframes: &[KeyframeView<'_>], cfg: &MappingConfig) -> Self {
         let Some(newest) = keyframes.last() else {
             return Self::default();
         };

@@ -8,18 +8,10 @@ use slam_common::icp::{IcpConfig, IcpTarget, icp};
 use slam_common::voxel::downsample;
 
 use crate::config::LoopConfig;
-use crate::features::Features;
-
-/// What loop detection needs of a keyframe.
-#[derive(Debug, Clone, Copy)]
-pub struct LoopKeyframe<'a> {
-    pub stamp_ns: i64,
-    pub world_from_lidar: Isometry3<f64>,
-    pub features: &'a Features,
-}
+use crate::keyframe::KeyframeView;
 
 /// The nearest old-enough keyframe to the last one, if within the radius.
-pub fn candidate(keyframes: &[LoopKeyframe<'_>], cfg: &LoopConfig) -> Option<usize> {
+pub fn candidate(keyframes: &[KeyframeView<'_>], cfg: &LoopConfig) -> Option<usize> {
     let newest = keyframes.last()?;
     let here = newest.world_from_lidar.translation.vector;
     let min_age_ns = (cfg.min_age_s * 1e9) as i64;
@@ -43,7 +35,7 @@ pub struct LoopMatch {
 /// Registers the newest keyframe to the candidate's submap. Err(fitness) when ICP fails or
 /// fits worse than the threshold.
 pub fn verify(
-    keyframes: &[LoopKeyframe<'_>],
+    keyframes: &[KeyframeView<'_>],
     older: usize,
     cfg: &LoopConfig,
     leaf_m: f64,

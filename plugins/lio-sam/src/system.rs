@@ -15,8 +15,9 @@ use crate::config::Config;
 use crate::deskew::{SweepLayout, rings};
 use crate::features::{Features, extract};
 use crate::graph::KeyframeGraph;
-use crate::local_map::{LocalMap, MapKeyframe};
-use crate::loop_closure::{LoopKeyframe, candidate, verify};
+use crate::keyframe::KeyframeView;
+use crate::local_map::LocalMap;
+use crate::loop_closure::{candidate, verify};
 use crate::motion::{ImuQueue, Motion, propagate};
 use crate::registration::register;
 
@@ -48,9 +49,9 @@ pub struct LioSam {
     lidar_from_base: Isometry3<f64>,
     /// Sweep duration and columns per sweep, to find a point's column from its time.
     layout: SweepLayout,
+    /// IMU messages since the newest keyframe: its preintegration factor and the
+    /// prediction from the last sweep both read them.
     imu: ImuQueue,
-    /// IMU messages since the newest keyframe, for its preintegration factor.
-    kf_imu: ImuQueue,
     /// The IMU state at the last registered sweep, and the bias estimate.
     nav: Option<(i64, NavState)>,
     bias: ImuBias,
@@ -164,7 +165,6 @@ impl LioSam {
                 velocity_mps: velocity,
             },
         ));
-        self.imu.discard_before(start_ns);
         self.previous.push((start_ns, *world_from_lidar));
         if self.previous.len() > VELOCITY_BASELINE {
             self.previous.remove(0);
@@ -227,9 +227,9 @@ impl LioSam {
         Ok(())
     }
 
-    /// IMU samples between two keyframes, kept until both exist.
+    /// IMU samples between two keyframes.
     fn keyframe_samples(&self, t0_ns: i64, t1_ns: i64) -> Vec<slam_common::backend::ImuSample> {
-        self.kf_imu
+        self.imu
             .samples(t0_ns, t1_ns)
             .into_iter()
             .map(|(_, s)| s)
@@ -245,13 +245,7 @@ impl LioSam {
         if self.looped.contains(&newer) {
             return Ok(());
         }
-        let views: Vec<LoopKeyframe<'_>> = (0..self.keyframes.len())
-            .map(|k| LoopKeyframe {
-                stamp_ns: self.keyframes[k].stamp_ns,
-                world_from_lidar: self.keyframe_world_from_lidar(k),
-                features: &self.keyframes[k].features,
-            })
-            .collect();
+        let views = self.views();
         let Some(older) = candidate(&views, &cfg) else {
             return Ok(());
         };
@@ -294,14 +288,20 @@ impl LioSam {
     }
 
     fn rebuild_map(&mut self) {
-        let views: Vec<MapKeyframe<'_>> = (0..self.keyframes.len())
-            .map(|k| MapKeyframe {
-                stamp_ns: self.keyframes[k].stamp_ns,
+        self.map = LocalMap::build(&self.views(), &self.cfg.mapping);
+    }
+
+    /// Every keyframe at its current estimate.
+    fn views(&self) -> Vec<KeyframeView<'_>> {
+        self.keyframes
+            .iter()
+            .enumerate()
+            .map(|(k, kf)| KeyframeView {
+                stamp_ns: kf.stamp_ns,
                 world_from_lidar: self.keyframe_world_from_lidar(k),
-                features: &self.keyframes[k].features,
+                features: &kf.features,
             })
-            .collect();
-        self.map = LocalMap::build(&views, &self.cfg.mapping);
+            .collect()
     }
 
     fn base_pose(&self, stamp_ns: i64, world_from_lidar: &Isometry3<f64>) -> Pose {
@@ -352,7 +352,6 @@ impl SlamSystem for LioSam {
                 max_range_m: cfg.features.max_range_m,
             },
             imu: ImuQueue::default(),
-            kf_imu: ImuQueue::default(),
             nav: None,
             bias: ImuBias::default(),
             previous: Vec::new(),
@@ -370,7 +369,6 @@ impl SlamSystem for LioSam {
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
         if self.cfg.use_imu {
             self.imu.push(*imu);
-            self.kf_imu.push(*imu);
         }
         Ok(None)
     }
@@ -378,7 +376,7 @@ impl SlamSystem for LioSam {
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
         let world_from_lidar = self.process(cloud)?;
         if let Some(k) = self.keyframes.last() {
-            self.kf_imu.discard_before(k.stamp_ns);
+            self.imu.discard_before(k.stamp_ns);
         }
         Ok(Some(self.base_pose(cloud.stamp_ns, &world_from_lidar)))
     }
