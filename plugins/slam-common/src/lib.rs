@@ -9,9 +9,12 @@
 //!   with degeneracy handling, point-to-plane ICP.
 
 pub mod backend;
+pub mod bow;
 pub mod geometry;
 pub mod icp;
 pub mod imu;
 pub mod kdtree;
 pub mod lsq;
+pub mod occupancy;
+pub mod scan2d;
 pub mod voxel;
