@@ -431,3 +431,61 @@ fn pnp_between_frames_recovers_the_true_relative_pose() {
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+// TEMPORARY (removed before hand-back): dumps the test's frames for inspection.
+#[test]
+#[ignore]
+fn tmp_dump_frames() {
+    std::fs::create_dir_all("/tmp/frames").unwrap();
+    for (k, frame) in frames().iter().flatten().enumerate() {
+        sim::camera::save_rgb_png(
+            std::path::Path::new(&format!("/tmp/frames/f{k:02}.png")),
+            &frame.image,
+        )
+        .unwrap();
+    }
+}
+
+// TEMPORARY diagnostic.
+#[test]
+#[ignore]
+fn tmp_orb_diag() {
+    let frame = &frames()[0][0];
+    let g = gray(&frame.image);
+    let mut kps = Vector::new();
+    let mut des = Mat::default();
+    ORB::create(20000, 1.2, 8, 31, 0, 2, ORB_ScoreType::HARRIS_SCORE, 31, 20)
+        .unwrap()
+        .detect_and_compute_def(&g, &core::no_array(), &mut kps, &mut des)
+        .unwrap();
+    let mut per_level = vec![(Vec::new(), Vec::new()); 8];
+    for k in kps.iter() {
+        let l = k.octave() as usize;
+        if k.pt().y > 270.0 {
+            per_level[l].1.push(k.response())
+        } else {
+            per_level[l].0.push(k.response())
+        }
+    }
+    let quota = [323, 269, 224, 187, 156, 130, 108, 90];
+    for (l, (mut up, mut low)) in per_level.into_iter().enumerate() {
+        up.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        low.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        let mut all: Vec<f32> = up.iter().chain(low.iter()).copied().collect();
+        all.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        let q = quota[l] * 1000 / 1587;
+        let cut = all.get(q).copied().unwrap_or(0.0);
+        let n_low = low.iter().filter(|&&r| r > cut).count();
+        let pick = |v: &Vec<f32>, i: usize| v.get(i).copied().unwrap_or(0.0);
+        eprintln!(
+            "level {l}: cut {cut:.2e}; upper n {} top {:.2e} p10 {:.2e}; lower n {} top {:.2e} p10 {:.2e} p50 {:.2e}; lower above cut {n_low}",
+            up.len(),
+            pick(&up, 0),
+            pick(&up, 10),
+            low.len(),
+            pick(&low, 0),
+            pick(&low, 10),
+            pick(&low, 50)
+        );
+    }
+}

@@ -22,7 +22,7 @@ use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
 const AHEAD: usize = 256;
 
 /// Which sensors to simulate for a plugin's requirements (ground truth always).
-pub fn sensor_set(kinds: &[SensorKind]) -> anyhow::Result<SensorSet> {
+pub fn sensor_set(kinds: &[SensorKind]) -> SensorSet {
     let mut set = SensorSet {
         ground_truth: true,
         ..SensorSet::default()
@@ -33,12 +33,10 @@ pub fn sensor_set(kinds: &[SensorKind]) -> anyhow::Result<SensorSet> {
             SensorKind::WheelOdometry => set.wheel_odometry = true,
             SensorKind::Lidar => set.lidar = true,
             SensorKind::Scan2d => set.scan2d = true,
-            SensorKind::Rgbd => {
-                bail!("it requires an RGB-D camera, which this simulator does not provide yet")
-            }
+            SensorKind::Rgbd => set.rgbd = true,
         }
     }
-    Ok(set)
+    set
 }
 
 /// Runs the job; an error is the run's failure reason.
@@ -48,8 +46,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = crate::cmd::simulate::load_config(job.world.as_deref())?;
     let plugin = plugin_api::load(&job.plugin)?;
-    let sensors = sensor_set(&plugin.requirements.sensors)
-        .map_err(|e| anyhow!("plugin {}: {e}", plugin.name))?;
+    let sensors = sensor_set(&plugin.requirements.sensors);
     let sim = Simulation::new(&config, &job.scenario, job.seed)?;
     let rig = crate::rig::rig(&config);
     write_run_toml(job, &config, &plugin)?;

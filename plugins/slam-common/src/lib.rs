@@ -6,7 +6,11 @@
 //! - [`imu`]: on-manifold IMU preintegration and state prediction;
 //! - [`kdtree`], [`voxel`]: nearest neighbours and voxel-grid downsampling for maps;
 //! - [`geometry`], [`lsq`], [`icp`]: lines and planes from neighbours, Gauss–Newton on SE(3)
-//!   with degeneracy handling, point-to-plane ICP.
+//!   with degeneracy handling, point-to-plane ICP;
+//! - [`bow`]: an incremental bag-of-words vocabulary over binary descriptors with tf-idf
+//!   scores and RTAB-Map's likelihood, for appearance-based loop-closure detection;
+//! - [`scan2d`], [`occupancy`]: planar laser scans, 3-DoF point-to-line ICP with degeneracy
+//!   handling, and a log-odds 2D occupancy grid in the ROS map_server convention.
 
 pub mod backend;
 pub mod bow;

@@ -49,6 +49,7 @@
 
 mod chunks;
 mod depth_noise;
+mod ground;
 mod image;
 mod intrinsics;
 mod raster;
@@ -68,6 +69,7 @@ use crate::config::{CameraConfig, NoiseProfile};
 use crate::rng::SimRng;
 use crate::world::World;
 use chunks::Chunks;
+use ground::GroundTexture;
 use shading::{Light, Shader};
 use shadow::ShadowMap;
 
@@ -84,6 +86,7 @@ pub struct RgbdCamera {
     chunks: Chunks,
     light: Light,
     shadow: Option<ShadowMap>,
+    ground: GroundTexture,
 }
 
 impl RgbdCamera {
@@ -91,6 +94,7 @@ impl RgbdCamera {
         let chunks = Chunks::build(&world.mesh, 1.0);
         let light = Light::new(cfg.sun_elevation_deg, cfg.sun_azimuth_deg);
         let shadow = cfg.shadows.then(|| ShadowMap::build(&chunks, &light));
+        let ground = GroundTexture::new(&light);
         Self {
             cfg: cfg.clone(),
             intrinsics: Intrinsics::from_config(cfg),
@@ -98,6 +102,7 @@ impl RgbdCamera {
             chunks,
             light,
             shadow,
+            ground,
         }
     }
 
@@ -150,6 +155,7 @@ impl RgbdCamera {
             view: &view,
             light: &self.light,
             shadow: self.shadow.as_ref(),
+            ground: &self.ground,
         };
 
         // 2-3: per band, rasterize a visibility buffer (small enough to stay in cache),

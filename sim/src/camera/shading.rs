@@ -1,7 +1,8 @@
 //! Per-pixel shading of the visibility buffer: exact ray-triangle intersection, material,
-//! Lambert sun with shadows, hemispheric sky ambient, aerial haze, and a sky gradient.
+//! Lambert sun with shadows (and the soil's relief), hemispheric sky ambient, aerial haze, and a sky gradient.
 
 use super::chunks::Chunks;
+use super::ground::GroundTexture;
 use super::raster::{View, dot, sub};
 use super::shadow::ShadowMap;
 use super::texture::{Surface, albedo, tree_line};
@@ -52,6 +53,7 @@ pub(crate) struct Shader<'a> {
     pub view: &'a View,
     pub light: &'a Light,
     pub shadow: Option<&'a ShadowMap>,
+    pub ground: &'a GroundTexture,
 }
 
 fn sq(c: [f32; 3]) -> [f32; 3] {
@@ -116,7 +118,8 @@ impl Shader<'_> {
             // one direction only, and blurring both would wash the ground out.
             per_m: self.view.fx * cos_incidence.max(0.05).sqrt() / (depth * len),
         };
-        let base = sq(albedo(&surface));
+        let (albedo, relief) = albedo(&surface, self.ground);
+        let base = sq(albedo);
         let point = [0, 1, 2].map(|k| o[k] + depth * d[k]);
         let l = &self.light;
         let mut ndl = dot(&n, &l.sun);
@@ -125,7 +128,7 @@ impl Shader<'_> {
             ndl *= -0.35;
         }
         let sun = if ndl > 0.0 {
-            ndl * self.shadow.map_or(1.0, |s| s.lit(&point))
+            ndl * relief * self.shadow.map_or(1.0, |s| s.lit(&point))
         } else {
             0.0
         };

@@ -2,6 +2,7 @@
 //! position. Value noise on an integer lattice hash (cheap, deterministic, no tables);
 //! patterns sized for a 640x480 camera a metre or a few from the canopy.
 
+use super::ground::GroundTexture;
 use crate::world::Material;
 
 /// What the shader knows about a surface point.
@@ -58,19 +59,21 @@ fn octave(period_m: f32, per_m: f32) -> f32 {
     ((period_m * per_m - 2.0) * 0.5).clamp(0.0, 1.0)
 }
 
-pub(crate) fn albedo(s: &Surface) -> [f32; 3] {
-    match s.material {
-        Material::Soil => soil(s.t, s.per_m),
-        Material::Grass => grass(s.t, s.per_m),
+/// A surface point's albedo (sRGB) and relief: the factor on direct sunlight from the
+/// surface's small-scale shape (1 but for the ground, see [`GroundTexture`]).
+pub(crate) fn albedo(s: &Surface, ground: &GroundTexture) -> ([f32; 3], f32) {
+    let c = match s.material {
+        Material::Soil | Material::Grass => return ground.sample(s.material, s.t, s.per_m),
         Material::Bark => bark(s.t, s.per_m),
         Material::Leaf => leaf(s),
         Material::Grape => grape(s.t),
         Material::Post => post(s.t),
         Material::Wire => wire(s.t),
-    }
+    };
+    (c, 1.0)
 }
 
-fn hash(x: i32, y: i32, z: i32, salt: u32) -> f32 {
+pub(super) fn hash(x: i32, y: i32, z: i32, salt: u32) -> f32 {
     // Lattice hash: odd multipliers per axis, one multiply-xorshift finaliser.
     let mut h = (x as u32).wrapping_mul(0x8da6_b343)
         ^ (y as u32).wrapping_mul(0xd816_3841)
@@ -83,27 +86,22 @@ fn hash(x: i32, y: i32, z: i32, salt: u32) -> f32 {
 }
 
 /// `x.floor()` without a libm call (baseline x86-64 has no SSE4.1 `roundps`), as f32 and i32.
-fn floor(x: f32) -> (f32, i32) {
+pub(super) fn floor(x: f32) -> (f32, i32) {
     let i = x as i32;
     let i = if (i as f32) > x { i - 1 } else { i };
     (i as f32, i)
 }
 
-/// Fractional part of a non-negative number, without a libm call.
-fn fract(x: f32) -> f32 {
-    x - (x as i32) as f32
-}
-
-fn smooth(f: f32) -> f32 {
+pub(super) fn smooth(f: f32) -> f32 {
     f * f * (3.0 - 2.0 * f)
 }
 
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
+pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + (b - a) * t
 }
 
 /// 2D value noise in [0, 1) at lattice spacing 1.
-fn noise2(x: f32, y: f32, salt: u32) -> f32 {
+pub(super) fn noise2(x: f32, y: f32, salt: u32) -> f32 {
     let ((xf, xi), (yf, yi)) = (floor(x), floor(y));
     let (fx, fy) = (smooth(x - xf), smooth(y - yf));
     let a = lerp(hash(xi, yi, 0, salt), hash(xi + 1, yi, 0, salt), fx);
@@ -147,102 +145,6 @@ fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
         lerp(a[1], b[1], t),
         lerp(a[2], b[2], t),
     ]
-}
-
-/// Tilled soil: brown with low-contrast large patches, fine crumbs, a few clods, scattered
-/// stones and sparse weeds. World space: it differs along a row, but less than the vines
-/// repeat.
-fn soil(t: [f32; 3], per_m: f32) -> [f32; 3] {
-    let (x, y) = (t[0], t[1]);
-    let large = noise2(x * 0.7, y * 0.7, 1);
-    let mut k = 0.88 + 0.16 * large;
-    let w_mid = octave(0.12, per_m);
-    let mid = if w_mid > 0.0 {
-        noise2(x * 8.0, y * 8.0, 2)
-    } else {
-        0.5
-    };
-    k += 0.10 * (mid - 0.5) * w_mid;
-    let w_fine = octave(0.025, per_m);
-    if w_fine > 0.0 {
-        k += 0.24 * (noise2(x * 40.0, y * 40.0, 3) - 0.5) * w_fine;
-    }
-    let w_grain = octave(0.008, per_m);
-    if w_grain > 0.0 {
-        k += 0.14 * (noise2(x * 130.0, y * 130.0, 4) - 0.5) * w_grain;
-    }
-    // Crumbs: small lumps, darker or lighter than the soil around, in about 40 % of the
-    // 1.5 cm cells at random places (a denser or regular layout reads as a grid).
-    if w_fine > 0.0 {
-        let (gx, gy) = (x / 0.015, y / 0.015);
-        let ((fx, ix), (fy, iy)) = (floor(gx), floor(gy));
-        let h = hash(ix, iy, 3, 9);
-        if fract(h * 5.93) < 0.4 {
-            let ox = fract(h * 7.31) * 0.7 + 0.15;
-            let oy = fract(h * 13.17) * 0.7 + 0.15;
-            let r2 = (gx - fx - ox).powi(2) + (gy - fy - oy).powi(2);
-            let r = 0.12 + 0.25 * fract(h * 3.71);
-            if r2 < r * r {
-                let lump = 0.7 + 0.55 * fract(h * 2.39);
-                k *= 1.0 + (lump - 1.0) * w_fine * (1.0 - r2 / (r * r));
-            }
-        }
-    }
-    let mut c = scale([0.50, 0.41, 0.32], k);
-    // Clods: slightly darker, moister lumps where the mid octave peaks; dry cracks where it
-    // crosses its mean.
-    if mid > 0.72 {
-        c = scale(c, 1.0 - 0.8 * (mid - 0.72));
-    }
-    let crack = (mid - 0.5).abs();
-    if crack < 0.012 {
-        c = scale(c, 1.0 - (0.18 - 15.0 * crack) * octave(0.02, per_m));
-    }
-    // Stones: one candidate per 9 cm cell.
-    let (sx, sy) = (x / 0.09, y / 0.09);
-    let ((cx, ix), (cy, iy)) = (floor(sx), floor(sy));
-    let h = hash(ix, iy, 7, 5);
-    if h < 0.12 && w_fine > 0.0 {
-        let ox = 0.3 + 0.4 * hash(ix, iy, 8, 5);
-        let oy = 0.3 + 0.4 * hash(ix, iy, 9, 5);
-        let r = 0.12 + 0.22 * h / 0.12;
-        let d2 = (sx - cx - ox).powi(2) + (sy - cy - oy).powi(2);
-        if d2 < r * r {
-            let g = 0.46 + 0.16 * hash(ix, iy, 10, 5);
-            // Lit from one side, like a rounded pebble.
-            let side = ((sx - cx - ox) + (sy - cy - oy)) / r;
-            let stone = scale(
-                [g, g * 0.97, g * 0.92],
-                1.0 - 0.2 * side - 0.2 * d2 / (r * r),
-            );
-            c = mix(c, stone, w_fine);
-        }
-    }
-    // Sparse weeds in patches.
-    let weeds = 0.75 * noise2(x * 1.7 + 11.0, y * 1.7, 6) + 0.25 * mid;
-    if weeds > 0.66 {
-        c = mix(c, [0.36, 0.42, 0.22], ((weeds - 0.66) * 4.0).min(0.5));
-    }
-    c
-}
-
-/// Grass: green blades (streaks) with yellowish dry patches.
-fn grass(t: [f32; 3], per_m: f32) -> [f32; 3] {
-    let (x, y) = (t[0], t[1]);
-    let patch = noise2(x * 0.6, y * 0.6, 21);
-    let w = octave(0.015, per_m);
-    let blades = if w > 0.0 {
-        0.5 + (noise2(x * 90.0, y * 30.0, 22) - 0.5) * w
-    } else {
-        0.5
-    };
-    let mid = noise2(x * 7.0, y * 7.0, 23);
-    let c = mix(
-        [0.28, 0.43, 0.16],
-        [0.50, 0.50, 0.26],
-        (patch - 0.35).clamp(0.0, 1.0),
-    );
-    scale(c, 0.72 + 0.35 * blades + 0.15 * mid)
 }
 
 /// Vine bark: grey-brown with long dark fissures along the wood (ridged noise stretched

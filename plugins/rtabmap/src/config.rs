@@ -1,0 +1,318 @@
+//! The plugin's parameters: every key optional, defaults from RTAB-Map's (its parameter names
+//! in the doc comments), unknown keys rejected.
+
+use serde::Deserialize;
+use slam_common::backend::BackendConfig;
+use slam_common::occupancy::OccupancyGridConfig;
+use slam_common::scan2d::Icp2dConfig;
+
+/// Where the odometry between locations comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OdometrySource {
+    /// RGB-D visual odometry (RTAB-Map's rgbd_odometry).
+    Visual,
+    /// Wheel odometry as the motion guess, refined by ICP on the front 2D scan (3-DoF), as
+    /// the paper ran RTAB-Map.
+    WheelIcp,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub odometry: OdometrySource,
+    /// The camera's sensor name in the rig.
+    pub camera: String,
+    /// The 2D scan for ICP odometry and the occupancy grid.
+    pub scan: String,
+    pub features: FeatureConfig,
+    pub visual: VisualOdometryConfig,
+    pub icp: ScanOdometryConfig,
+    pub memory: MemoryConfig,
+    pub loop_closure: LoopClosureConfig,
+    /// Odometry links' standard deviations (the link covariance RTAB-Map takes from its
+    /// odometry), per metre travelled plus a floor.
+    pub odometry_link: LinkSigmas,
+    pub grid: OccupancyGridConfig,
+    /// Map cloud: every how many depth pixels (in both directions) one point per location.
+    pub map_decimation: usize,
+    /// And the voxel the map cloud is thinned to, m.
+    pub map_voxel_m: f64,
+    pub backend: BackendConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            odometry: OdometrySource::WheelIcp,
+            camera: "camera".into(),
+            scan: "scan_front".into(),
+            features: FeatureConfig::default(),
+            visual: VisualOdometryConfig::default(),
+            icp: ScanOdometryConfig::default(),
+            memory: MemoryConfig::default(),
+            loop_closure: LoopClosureConfig::default(),
+            odometry_link: LinkSigmas::default(),
+            grid: OccupancyGridConfig::default(),
+            map_decimation: 8,
+            map_voxel_m: 0.05,
+            backend: BackendConfig::default(),
+        }
+    }
+}
+
+/// GFTT corners with BRIEF descriptors (`Kp/DetectorStrategy` = GFTT/BRIEF).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeatureConfig {
+    /// `Vis/MaxFeatures` (odometry).
+    pub max_features: usize,
+    /// `GFTT/QualityLevel`.
+    pub quality_level: f64,
+    /// `GFTT/MinDistance`, px.
+    pub min_distance_px: f64,
+    /// `GFTT/BlockSize`.
+    pub block_size: i32,
+    /// Depth accepted for a feature's 3D point, m (the camera's valid range).
+    pub min_depth_m: f64,
+    pub max_depth_m: f64,
+    /// A feature whose 3x3 depth neighbourhood spans more than this fraction of its depth
+    /// lies on a silhouette, where its depth belongs to either side: no 3D point. RTAB-Map
+    /// has no such test; 0 disables it.
+    pub max_depth_step: f64,
+}
+
+impl Default for FeatureConfig {
+    fn default() -> Self {
+        Self {
+            max_features: 1000,
+            quality_level: 0.001,
+            min_distance_px: 7.0,
+            block_size: 3,
+            min_depth_m: 0.5,
+            max_depth_m: 4.5,
+            max_depth_step: 0.05,
+        }
+    }
+}
+
+/// Frame-to-map or frame-to-frame visual odometry (`Odom/Strategy` 0 or 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VisualStrategy {
+    FrameToMap,
+    FrameToFrame,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VisualOdometryConfig {
+    pub strategy: VisualStrategy,
+    /// `Vis/CorNNDR`: a match is kept when nearest < ratio × second nearest.
+    pub nndr: f32,
+    /// `OdomF2M/MaxSize`: words in the local feature map.
+    pub local_map_size: usize,
+    /// `Vis/CorGuessWinSize`, px: with a motion guess, a map word is matched only to
+    /// features within this radius of where the guess projects it (0: everywhere).
+    pub guess_window_px: f64,
+    /// `Vis/PnPReprojError`, px.
+    pub pnp_reprojection_px: f64,
+    /// `Vis/Iterations`.
+    pub pnp_iterations: i32,
+    /// `Vis/MinInliers`.
+    pub min_inliers: usize,
+    /// `Odom/KeyFrameThr`: a new keyframe (map update) when inliers / features fall below.
+    pub keyframe_inlier_ratio: f64,
+    /// `Odom/ResetCountdown`: after this many lost frames in a row, odometry restarts from
+    /// the last pose with a fresh map (0: never; frames stay lost until matched again).
+    pub reset_countdown: usize,
+}
+
+impl Default for VisualOdometryConfig {
+    fn default() -> Self {
+        Self {
+            strategy: VisualStrategy::FrameToMap,
+            nndr: 0.8,
+            local_map_size: 2000,
+            guess_window_px: 40.0,
+            pnp_reprojection_px: 2.0,
+            pnp_iterations: 300,
+            min_inliers: 20,
+            keyframe_inlier_ratio: 0.3,
+            reset_countdown: 1,
+        }
+    }
+}
+
+/// Wheel odometry refined by ICP against a local map of recent scans (`Odom/Strategy` 0 with
+/// `Reg/Strategy` 1, `Reg/Force3DoF`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScanOdometryConfig {
+    pub icp: Icp2dConfig,
+    /// `OdomF2M/ScanMaxSize`: points in the local scan map.
+    pub local_map_size: usize,
+    /// A scan joins the local map after the robot moved this far, m, or turned, rad
+    /// (`Odom/ScanKeyFrameThr` in spirit).
+    pub key_scan_distance_m: f64,
+    pub key_scan_angle_rad: f64,
+    /// Correction beyond which ICP is not believed and the wheel guess is kept, m.
+    pub max_correction_m: f64,
+    /// Returns farther than this are not registered, m (`Icp/RangeMax`; 0: all). At 0.35 m
+    /// above uneven ground, a level scan plane meets the ground a few metres out, where it
+    /// draws contours that move with the robot's pitch and roll rather than with the world.
+    pub max_range_m: f64,
+}
+
+impl Default for ScanOdometryConfig {
+    fn default() -> Self {
+        Self {
+            icp: Icp2dConfig::default(),
+            local_map_size: 4000,
+            key_scan_distance_m: 0.1,
+            key_scan_angle_rad: 0.05,
+            max_correction_m: 0.3,
+            max_range_m: 4.0,
+        }
+    }
+}
+
+/// Locations and memory management.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MemoryConfig {
+    /// `Rtabmap/DetectionRate`, Hz: a new location at most this often.
+    pub detection_rate_hz: f64,
+    /// `RGBD/LinearUpdate`, m and `RGBD/AngularUpdate`, rad: and only after moving this far.
+    pub linear_update_m: f64,
+    pub angular_update_rad: f64,
+    /// `Kp/MaxFeatures`: visual words per location, the strongest corners.
+    pub max_words: usize,
+    /// `Mem/STMSize`: the newest locations, never loop-closure candidates.
+    pub short_term_memory: usize,
+    /// `Rtabmap/MemoryThr`: working-memory locations beyond which the oldest go to
+    /// long-term memory and stop being candidates (0: unlimited).
+    pub working_memory_limit: usize,
+    /// `Kp/NndrRatio`: a descriptor joins an existing word when nearest < ratio × second.
+    pub word_nndr: f32,
+}
+
+impl Default for MemoryConfig {
+    fn default() -> Self {
+        Self {
+            detection_rate_hz: 1.0,
+            linear_update_m: 0.1,
+            angular_update_rad: 0.1,
+            max_words: 500,
+            short_term_memory: 10,
+            working_memory_limit: 0,
+            word_nndr: 0.8,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LoopClosureConfig {
+    pub enabled: bool,
+    /// `Rtabmap/LoopThr`: the posterior a hypothesis needs.
+    pub hypothesis_threshold: f64,
+    /// `Bayes/VirtualPlacePriorThr`: probability that the new location stays new.
+    pub virtual_place_prior: f64,
+    /// `Bayes/PredictionLC`: transition probabilities to the virtual place, the same
+    /// location, its neighbours 1, 2, … away.
+    pub prediction: Vec<f64>,
+    /// `Vis/MinInliers` for geometric verification.
+    pub min_inliers: usize,
+    /// `RGBD/OptimizeMaxError`: after optimising with a new loop closure, if any link's error
+    /// exceeds this many standard deviations the closure is rejected and the graph restored
+    /// (0: never reject).
+    pub optimize_max_error: f64,
+    /// Smallest standard deviations of a loop link (its variance comes from the PnP
+    /// inliers' errors), rad and m.
+    pub min_sigma_rad: f64,
+    pub min_sigma_m: f64,
+}
+
+impl Default for LoopClosureConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            hypothesis_threshold: 0.11,
+            virtual_place_prior: 0.9,
+            prediction: vec![
+                0.1, 0.36, 0.30, 0.16, 0.062, 0.0151, 0.00255, 0.000324, 2.5e-05, 1.3e-06, 4.8e-08,
+                1.2e-09, 1.9e-11, 2.2e-13, 1.7e-15, 1.0e-17, 4.9e-20, 1.4e-22, 2.4e-25, 3.0e-28,
+                2.6e-31,
+            ],
+            min_inliers: 20,
+            optimize_max_error: 3.0,
+            min_sigma_rad: 0.005,
+            min_sigma_m: 0.01,
+        }
+    }
+}
+
+/// Standard deviations of an odometry link: `floor + per_m × distance`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinkSigmas {
+    pub rad_floor: f64,
+    pub rad_per_m: f64,
+    pub m_floor: f64,
+    pub m_per_m: f64,
+}
+
+impl Default for LinkSigmas {
+    fn default() -> Self {
+        Self {
+            rad_floor: 0.002,
+            rad_per_m: 0.01,
+            m_floor: 0.005,
+            m_per_m: 0.02,
+        }
+    }
+}
+
+impl Config {
+    pub fn from_toml(text: &str) -> Result<Self, String> {
+        let cfg: Self =
+            toml::from_str(text).map_err(|e| format!("rtabmap parameters: {}", e.message()))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("memory.detection_rate_hz", self.memory.detection_rate_hz),
+            (
+                "visual.pnp_reprojection_px",
+                self.visual.pnp_reprojection_px,
+            ),
+            ("features.quality_level", self.features.quality_level),
+            (
+                "loop_closure.min_sigma_rad",
+                self.loop_closure.min_sigma_rad,
+            ),
+            ("loop_closure.min_sigma_m", self.loop_closure.min_sigma_m),
+            ("map_voxel_m", self.map_voxel_m),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "rtabmap parameters: {name} must be positive, got {v}"
+                ));
+            }
+        }
+        if self.loop_closure.prediction.len() < 2 {
+            return Err(
+                "rtabmap parameters: loop_closure.prediction needs at least 2 values".into(),
+            );
+        }
+        if self.map_decimation == 0 || self.memory.max_words == 0 || self.features.max_features == 0
+        {
+            return Err("rtabmap parameters: map_decimation, memory.max_words and features.max_features must be at least 1".into());
+        }
+        Ok(())
+    }
+}
