@@ -2,8 +2,9 @@
 //! ground truth (deskewing a turning sweep, IMU preintegration), and the plugin as the host
 //! runs it — loaded from its `.so` by the `vinebench` binary — closing a loop in S1.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+
+use common::{ate, json, run};
 
 use lio_sam::config::{FeatureConfig, MappingConfig};
 use lio_sam::deskew::{SweepLayout, rings};
@@ -236,75 +237,17 @@ fn deskewing_improves_registration_on_a_turning_scan() {
     );
 }
 
-fn deps_dir() -> PathBuf {
-    std::env::current_exe()
-        .expect("test executable")
-        .parent()
-        .expect("deps directory")
-        .to_owned()
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    serde_json::from_str(&t).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// Runs the plugin through the host on a scenario; returns its results folder.
-fn run(dir: &Path, scenario: &str, label: &str, params: &str) -> PathBuf {
-    let config = dir.join(format!("{label}.toml"));
-    std::fs::write(&config, params).expect("write plugin config");
-    let out = dir.join(label);
-    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args([
-            "run",
-            "--scenario",
-            scenario,
-            "--plugin",
-            "lio-sam",
-            "--plugin-config",
-        ])
-        .arg(&config)
-        .arg("--out")
-        .arg(&out)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .output()
-        .expect("vinebench runs");
-    assert!(
-        o.status.success(),
-        "run {label} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out.join(scenario).join("lio-sam")
-}
-
-/// ATE of a TUM trajectory against ground truth (SE(3) alignment), from `vinebench eval`.
-fn ate(folder: &Path, file: &str) -> f64 {
-    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args(["eval", "--align", "se3", "--json"])
-        .arg(folder.join("groundtruth.tum"))
-        .arg(folder.join(file))
-        .output()
-        .expect("vinebench eval runs");
-    assert!(
-        o.status.success(),
-        "eval failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("json")["rmse"]
-        .as_f64()
-        .expect("rmse")
-}
-
 /// Guards loop closure end to end: in S1 the robot comes back along the row it went down;
 /// the plugin, loaded from its `.so` by the host, must accept loop closures there, and its
 /// optimised trajectory must beat the same plugin's with loop closure off.
 #[test]
 fn a_loop_is_closed_in_s1_and_the_error_drops() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let with = run(dir.path(), "s1", "with-loops", "");
+    let with = run(dir.path(), "s1", "lio-sam", "with-loops", "");
     let without = run(
         dir.path(),
         "s1",
+        "lio-sam",
         "without-loops",
         "[loop_closure]\nenabled = false\n",
     );

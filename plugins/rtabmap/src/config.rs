@@ -53,7 +53,11 @@ impl Default for Config {
             memory: MemoryConfig::default(),
             loop_closure: LoopClosureConfig::default(),
             odometry_link: LinkSigmas::default(),
-            grid: OccupancyGridConfig::default(),
+            // RTAB-Map's `Grid/RangeMax`: beyond, a level scan plane draws the uneven ground.
+            grid: OccupancyGridConfig {
+                max_range_m: 5.0,
+                ..OccupancyGridConfig::default()
+            },
             map_decimation: 8,
             map_voxel_m: 0.05,
             backend: BackendConfig::default(),

@@ -34,7 +34,7 @@ const BORDER: i32 = PATCH / 2 + KERNEL_HALF + 1;
 fn test_pairs() -> &'static [[i8; 4]; 256] {
     static PAIRS: OnceLock<[[i8; 4]; 256]> = OnceLock::new();
     PAIRS.get_or_init(|| {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x4252_4945_46); // "BRIEF"
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x0042_5249_4546); // "BRIEF"
         let sigma = f64::from(PATCH) / 5.0;
         let normal = Normal::new(0.0, sigma).expect("a positive sigma");
         let half = PATCH / 2 - 1;

@@ -120,7 +120,7 @@ impl PoseGraph {
             .ok_or(BackendError::MissingVariable(Var::Pose(from)))?
             * from_from_to;
         self.backend.insert(Var::Pose(to), Value::Pose(start))?;
-        let factor = self.add_link(from, to, from_from_to, sigmas, Robust::None)?;
+        self.add_link(from, to, from_from_to, sigmas, Robust::None)?;
         self.links.push(Link {
             from,
             to,

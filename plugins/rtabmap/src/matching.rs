@@ -96,13 +96,23 @@ impl Best2 {
     }
 }
 
+/// Where each query is expected in the train image: query `i` is compared only with train
+/// features within `radius_px` of `projections[i]` (queries without one are skipped).
+#[derive(Debug, Clone, Copy)]
+pub struct Window<'a> {
+    pub projections: &'a [Option<[f32; 2]>],
+    pub grid: &'a PixelGrid,
+    /// The train features' pixels.
+    pub pixels: &'a [[f32; 2]],
+    pub radius_px: f32,
+}
+
 /// Every query's nearest train descriptor that passes the ratio test, keeping for each train
-/// feature only its closest query. With `window`, query `i` is compared only with train
-/// features within `radius` px of `window.0[i]` (queries without a projection are skipped).
+/// feature only its closest query, optionally within a [`Window`].
 pub fn match_descriptors(
     query: &[Descriptor],
     train: &[Descriptor],
-    window: Option<(&[Option<[f32; 2]>], &PixelGrid, &[[f32; 2]], f32)>,
+    window: Option<Window<'_>>,
     nndr: f32,
 ) -> Vec<Match> {
     let mut best_for_train: Vec<Option<Match>> = vec![None; train.len()];
@@ -115,7 +125,12 @@ pub fn match_descriptors(
                     best.offer(ti, hamming(q, t));
                 }
             }
-            Some((projections, grid, pixels, radius)) => {
+            Some(Window {
+                projections,
+                grid,
+                pixels,
+                radius_px: radius,
+            }) => {
                 let Some(center) = projections[qi] else {
                     continue;
                 };

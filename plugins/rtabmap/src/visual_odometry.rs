@@ -12,7 +12,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use crate::config::{VisualOdometryConfig, VisualStrategy};
 use crate::features::{Descriptor, Features};
-use crate::matching::{PixelGrid, match_descriptors};
+use crate::matching::{PixelGrid, Window, match_descriptors};
 use crate::pnp::{self, PnpConfig};
 
 /// A word of the local map: a 3D point in the odometry frame and its descriptor.
@@ -184,8 +184,12 @@ impl VisualOdometry {
             .collect();
         let radius = self.cfg.guess_window_px as f32;
         let grid = PixelGrid::new(&features.pixels, self.size.0, self.size.1, radius.max(1.0));
-        let window =
-            (radius > 0.0).then_some((&projections[..], &grid, &features.pixels[..], radius));
+        let window = (radius > 0.0).then_some(Window {
+            projections: &projections,
+            grid: &grid,
+            pixels: &features.pixels,
+            radius_px: radius,
+        });
         let matches = match_descriptors(&descriptors, &features.descriptors, window, self.cfg.nndr);
         let mut matched = vec![false; features.len()];
         for m in &matches {
