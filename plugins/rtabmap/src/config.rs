@@ -199,6 +199,11 @@ pub struct MemoryConfig {
     pub working_memory_limit: usize,
     /// `Kp/NndrRatio`: a descriptor joins an existing word when nearest < ratio × second.
     pub word_nndr: f32,
+    /// The vocabulary's search radius, as the multi-index hash's probe radius `r`: words
+    /// within `16 (r + 1)` bits are found exactly, so a descriptor farther than
+    /// `word_nndr × 16 (r + 1)` from every word is a new word (see `slam_common::bow`).
+    /// BRIEF descriptors of one corner seen 0.5 m apart differ by 30–50 bits.
+    pub word_probe_radius: u32,
 }
 
 impl Default for MemoryConfig {
@@ -211,6 +216,7 @@ impl Default for MemoryConfig {
             short_term_memory: 10,
             working_memory_limit: 0,
             word_nndr: 0.8,
+            word_probe_radius: 3,
         }
     }
 }
@@ -312,6 +318,14 @@ impl Config {
             return Err(
                 "rtabmap parameters: loop_closure.prediction needs at least 2 values".into(),
             );
+        }
+        if self.memory.word_probe_radius > slam_common::bow::MAX_PROBE_RADIUS
+            || !(self.memory.word_nndr > 0.0 && self.memory.word_nndr <= 1.0)
+        {
+            return Err(format!(
+                "rtabmap parameters: memory.word_probe_radius must be at most {} and memory.word_nndr in (0, 1]",
+                slam_common::bow::MAX_PROBE_RADIUS
+            ));
         }
         if self.map_decimation == 0 || self.memory.max_words == 0 || self.features.max_features == 0
         {

@@ -57,7 +57,7 @@ impl Memory {
             cfg: cfg.clone(),
             vocabulary: Vocabulary::new(VocabularyConfig {
                 nndr: cfg.word_nndr,
-                ..VocabularyConfig::default()
+                probe_radius: cfg.word_probe_radius,
             }),
             bayes: BayesFilter::new(loops.prediction.clone(), loops.virtual_place_prior),
             threshold: loops.hypothesis_threshold,
