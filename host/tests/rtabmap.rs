@@ -97,7 +97,7 @@ fn scan_odometry_error_s0(icp: bool) -> f64 {
         .mount_for(Side::Front)
         .base_from_sensor();
     let cfg = ScanOdometryConfig {
-        max_correction_m: if icp { 0.3 } else { 0.0 },
+        max_correction_m: if icp { 0.1 } else { 0.0 },
         ..ScanOdometryConfig::default()
     };
     let mut odometry = ScanOdometry::new(cfg, &base_from_scan);

@@ -148,11 +148,22 @@ impl Default for VisualOdometryConfig {
     }
 }
 
+/// Where the dead-reckoned guess takes its yaw rate from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum YawSource {
+    Wheels,
+    Imu,
+}
+
 /// Wheel odometry refined by ICP against a local map of recent scans (`Odom/Strategy` 0 with
 /// `Reg/Strategy` 1, `Reg/Force3DoF`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ScanOdometryConfig {
+    /// The guess's yaw rate: the IMU's gyro (as a robot's odometry usually fuses it) or the
+    /// wheels'.
+    pub yaw_source: YawSource,
     pub icp: Icp2dConfig,
     /// `OdomF2M/ScanMaxSize`: points in the local scan map.
     pub local_map_size: usize,
@@ -160,8 +171,12 @@ pub struct ScanOdometryConfig {
     /// (`Odom/ScanKeyFrameThr` in spirit).
     pub key_scan_distance_m: f64,
     pub key_scan_angle_rad: f64,
-    /// Correction beyond which ICP is not believed and the wheel guess is kept, m.
+    /// Correction of the guess beyond which ICP is not believed and the guess is kept, m and
+    /// rad (scans come at 40 Hz: the guess is off by millimetres, a bigger correction is a
+    /// wrong match along a row of look-alike trunks).
     pub max_correction_m: f64,
+    pub max_correction_rad: f64,
+
     /// Returns farther than this are not registered, m (`Icp/RangeMax`; 0: all). At 0.35 m
     /// above uneven ground, a level scan plane meets the ground a few metres out, where it
     /// draws contours that move with the robot's pitch and roll rather than with the world.
@@ -171,11 +186,13 @@ pub struct ScanOdometryConfig {
 impl Default for ScanOdometryConfig {
     fn default() -> Self {
         Self {
+            yaw_source: YawSource::Imu,
             icp: Icp2dConfig::default(),
             local_map_size: 4000,
             key_scan_distance_m: 0.1,
             key_scan_angle_rad: 0.05,
-            max_correction_m: 0.3,
+            max_correction_m: 0.1,
+            max_correction_rad: 0.05,
             max_range_m: 4.0,
         }
     }

@@ -4,13 +4,18 @@
 //! refined pose moved by what the wheels measured since. Where the scan does not constrain a
 //! direction (along a row of a vineyard, two parallel lines of trunks and foliage can leave
 //! the along-row translation weakly constrained), the wheels' motion stands.
+//!
+//! The guess is dead reckoning from the wheels' forward speed with the yaw rate of the IMU's
+//! gyro (or of the wheels): a skid-steered base turning on the spot in a headland, where the
+//! scan sees nothing within range, loses degrees of heading on its wheels alone, which no
+//! later registration along a row of identical trunks can take back.
 
 use std::collections::VecDeque;
 
 use nalgebra::{Isometry2, Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
 use slam_common::scan2d::{Icp2dTarget, icp2d};
 
-use crate::config::ScanOdometryConfig;
+use crate::config::{ScanOdometryConfig, YawSource};
 
 /// The planar part of a pose: x, y and yaw.
 pub fn planar(pose: &Isometry3<f64>) -> Isometry2<f64> {
@@ -41,8 +46,14 @@ pub struct ScanStep {
 pub struct ScanOdometry {
     cfg: ScanOdometryConfig,
     base_from_scan: Isometry2<f64>,
-    /// Recent wheel poses `(stamp, odom_from_base)`, for the guess at a scan's stamp.
+    /// Recent dead-reckoned poses `(stamp, odom_from_base)`, for the guess at a scan's stamp.
     wheels: VecDeque<(i64, Isometry2<f64>)>,
+    /// Dead reckoning: the last wheel reading's stamp and the pose there; the gyro's yaw
+    /// integrated so far and its value at the last wheel reading.
+    reckoned: Option<(i64, Isometry2<f64>)>,
+    gyro_yaw: f64,
+    gyro_yaw_at_wheels: f64,
+    last_gyro_ns: Option<i64>,
     /// The wheel pose at the last scan, and the refined pose there.
     last: Option<(Isometry2<f64>, Isometry2<f64>)>,
     key_scans: VecDeque<Vec<Vector2<f64>>>,
@@ -56,6 +67,10 @@ impl ScanOdometry {
             cfg,
             base_from_scan: planar(base_from_scan),
             wheels: VecDeque::new(),
+            reckoned: None,
+            gyro_yaw: 0.0,
+            gyro_yaw_at_wheels: 0.0,
+            last_gyro_ns: None,
             last: None,
             key_scans: VecDeque::new(),
             last_key: None,
@@ -63,8 +78,37 @@ impl ScanOdometry {
         }
     }
 
-    pub fn on_wheels(&mut self, stamp_ns: i64, odom_from_base: &Isometry3<f64>) {
-        self.wheels.push_back((stamp_ns, planar(odom_from_base)));
+    /// The gyro's yaw rate about the base's z axis, rad/s.
+    pub fn on_gyro(&mut self, stamp_ns: i64, yaw_rate_rps: f64) {
+        if let Some(last) = self.last_gyro_ns {
+            self.gyro_yaw += yaw_rate_rps * (stamp_ns - last) as f64 * 1e-9;
+        }
+        self.last_gyro_ns = Some(stamp_ns);
+    }
+
+    /// A wheel reading: forward speed and the wheels' yaw rate.
+    pub fn on_wheels(&mut self, stamp_ns: i64, linear_mps: f64, angular_rps: f64) {
+        let pose = match self.reckoned {
+            None => Isometry2::identity(),
+            Some((last, pose)) => {
+                let dt = (stamp_ns - last) as f64 * 1e-9;
+                let dyaw = match self.cfg.yaw_source {
+                    YawSource::Imu if self.last_gyro_ns.is_some() => {
+                        self.gyro_yaw - self.gyro_yaw_at_wheels
+                    }
+                    _ => angular_rps * dt,
+                };
+                let mid = pose.rotation.angle() + 0.5 * dyaw;
+                let step = linear_mps * dt;
+                Isometry2::new(
+                    pose.translation.vector + Vector2::new(step * mid.cos(), step * mid.sin()),
+                    pose.rotation.angle() + dyaw,
+                )
+            }
+        };
+        self.gyro_yaw_at_wheels = self.gyro_yaw;
+        self.reckoned = Some((stamp_ns, pose));
+        self.wheels.push_back((stamp_ns, pose));
         while self.wheels.len() > 64 {
             self.wheels.pop_front();
         }
@@ -119,7 +163,9 @@ impl ScanOdometry {
         if !self.target.is_empty() {
             if let Some(result) = icp2d(&in_base, &self.target, guess, &self.cfg.icp) {
                 let correction = guess.inverse() * result.target_from_source;
-                if correction.translation.vector.norm() <= self.cfg.max_correction_m {
+                if correction.translation.vector.norm() <= self.cfg.max_correction_m
+                    && correction.rotation.angle().abs() <= self.cfg.max_correction_rad
+                {
                     step = ScanStep {
                         odom_from_base: result.target_from_source,
                         registered: true,

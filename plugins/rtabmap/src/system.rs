@@ -1,9 +1,9 @@
 //! The plugin: odometry between messages, a location per second, loop closure and the graph.
 
-use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use plugin_api::{
-    Event, EventKind, LaserScan, OccupancyGrid, PluginError, Pose, Requirements, RgbdFrame, Rig,
-    SensorKind, SlamOutput, SlamSystem, WheelOdometry,
+    Event, EventKind, Imu, LaserScan, OccupancyGrid, PluginError, Pose, Requirements, RgbdFrame,
+    Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
 };
 use slam_common::occupancy::OccupancyGridBuilder;
 use slam_common::scan2d::points_from_ranges;
@@ -37,6 +37,8 @@ pub struct Rtabmap {
     cfg: Config,
     base_from_camera: Isometry3<f64>,
     base_from_scan: Isometry3<f64>,
+    /// The IMU's orientation on the base, to read the gyro's yaw rate.
+    base_r_imu: UnitQuaternion<f64>,
     /// The camera's `[fx, fy, cx, cy]`, from the rig.
     intrinsics: [f64; 4],
     odometry: Odometry,
@@ -288,6 +290,7 @@ impl SlamSystem for Rtabmap {
             SensorKind::Rgbd,
             SensorKind::WheelOdometry,
             SensorKind::Scan2d,
+            SensorKind::Imu,
         ])
     }
 
@@ -322,6 +325,10 @@ impl SlamSystem for Rtabmap {
         let size = (k("width")? as usize, k("height")? as usize);
         let base_from_camera = camera.base_from_sensor();
         let base_from_scan = scan.base_from_sensor();
+        let base_r_imu = rig
+            .first(SensorKind::Imu)
+            .map(|imu| imu.base_from_sensor().rotation)
+            .unwrap_or_default();
         let odometry = match cfg.odometry {
             OdometrySource::Visual => Odometry::Visual(Some(VisualOdometry::new(
                 cfg.visual.clone(),
@@ -340,6 +347,7 @@ impl SlamSystem for Rtabmap {
             memory: Memory::new(&cfg.memory, &cfg.loop_closure),
             base_from_camera,
             base_from_scan,
+            base_r_imu,
             intrinsics,
             odometry,
             latest_scan: None,
@@ -351,13 +359,17 @@ impl SlamSystem for Rtabmap {
         })
     }
 
+    fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
+        if let Odometry::WheelIcp(scan_odometry) = &mut self.odometry {
+            let yaw_rate = (self.base_r_imu * Vector3::from(imu.gyro_rps)).z;
+            scan_odometry.on_gyro(imu.stamp_ns, yaw_rate);
+        }
+        Ok(None)
+    }
+
     fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
         if let Odometry::WheelIcp(scan_odometry) = &mut self.odometry {
-            let pose = odom
-                .odom_from_base
-                .isometry()
-                .ok_or_else(|| PluginError::new("wheel odometry with an invalid pose"))?;
-            scan_odometry.on_wheels(odom.stamp_ns, &pose);
+            scan_odometry.on_wheels(odom.stamp_ns, odom.linear_mps, odom.angular_rps);
         }
         Ok(None)
     }
