@@ -1,5 +1,6 @@
 //! Per-pixel shading of the visibility buffer: exact ray-triangle intersection, material,
-//! Lambert sun with shadows (and the soil's relief), hemispheric sky ambient, aerial haze, and a sky gradient.
+//! Lambert sun with shadows (times the ground's relief), hemispheric sky ambient, aerial
+//! haze, and a sky gradient.
 
 use super::chunks::Chunks;
 use super::ground::GroundTexture;

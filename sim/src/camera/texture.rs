@@ -1,6 +1,7 @@
 //! Procedural materials: albedo (sRGB, 0..1) of a surface point from its texture-space
 //! position. Value noise on an integer lattice hash (cheap, deterministic, no tables);
-//! patterns sized for a 640x480 camera a metre or a few from the canopy.
+//! patterns sized for a 640x480 camera a metre or a few from the canopy. The ground (soil
+//! and grass) is looked up in precomputed textures instead (`ground`).
 
 use super::ground::GroundTexture;
 use crate::world::Material;

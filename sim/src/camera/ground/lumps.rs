@@ -2,8 +2,8 @@
 //! crumbs). A lump is the cell of a jittered-grid Voronoi diagram cut by a disc, so it is
 //! angular where it meets a neighbour and rounded elsewhere, with a V-shaped crack between
 //! neighbours (Worley's F2 − F1); clods are broken into facets by a finer Voronoi grid.
-//! Lumps see a plane warped by noise, so their edges
-//! are wavy; how cloddy (and how pale) the ground is varies over half a metre.
+//! Lumps see a plane warped by noise, so their edges are wavy; how cloddy (and how pale)
+//! the ground is varies over half a metre.
 
 use rayon::prelude::*;
 
@@ -92,9 +92,9 @@ pub(super) fn lay(texels: &mut [Texel]) {
             let top = r * lerp(HEIGHT[0], HEIGHT[1], s.r[2]);
             let salt = 9 + (s.r[3] * 7.0) as u32;
             let neighbours = kind.grid.neighbours(k);
-            splat(s.x, s.y, r + WARP + 1.0, |k, dx, dy| {
+            splat(s.x, s.y, r + WARP + 1.0, |texel, dx, dy| {
                 // The warped point, from the site.
-                let (dx, dy) = (dx + warp[k][0], dy + warp[k][1]);
+                let (dx, dy) = (dx + warp[texel][0], dy + warp[texel][1]);
                 let f1 = (dx * dx + dy * dy).sqrt();
                 if f1 >= r {
                     return;
@@ -120,7 +120,7 @@ pub(super) fn lay(texels: &mut [Texel]) {
                     h -= 0.15 * g1 * crack;
                     c = scale(c, 0.94 + 0.12 * facet.r[0]);
                 }
-                texels[k].over(h, c, inside(f1, r, 1.0));
+                texels[texel].over(h, c, inside(f1, r, 1.0));
             });
         }
     }

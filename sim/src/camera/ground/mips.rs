@@ -1,5 +1,6 @@
 //! A tile's mip map (Williams 1983, "Pyramidal parametrics"), sampled with trilinear
-//! filtering: eight texel reads per sample whatever the distance.
+//! filtering: eight texel reads per sample whatever the distance, weighted in fixed point
+//! as packed bytes (two multiplies per texel).
 
 use super::{MAX_RELIEF, SIDE};
 use crate::camera::texture::floor;
@@ -46,53 +47,70 @@ impl Mips {
     /// Albedo (sRGB) and relief at `(u, v)` metres in the tile's frame, seen with `per_m`
     /// pixel footprints per metre (`lod_bias` mip levels sharper than that footprint).
     pub fn sample(&self, u: f32, v: f32, per_m: f32, lod_bias: f32) -> ([f32; 3], f32) {
-        let (u, v) = (u * self.per_texel, v * self.per_texel);
+        // Finest-level texels, in fixed point with 8 fractional bits.
+        let fixed = |x: f32| floor(x * self.per_texel * 256.0).1;
+        let (u, v) = (fixed(u), fixed(v));
         // Texels per footprint, as a mip level.
         let lod = log2(self.per_texel / per_m) - lod_bias;
         let last = self.levels.len() - 1;
-        let t = if !(lod > 0.0) {
+        let t = if lod.is_nan() || lod <= 0.0 {
             self.bilinear(0, u, v)
         } else if lod >= last as f32 {
-            unpack(self.levels[last][0])
+            self.bilinear(last, u, v)
         } else {
             let l = lod as usize;
-            let f = lod - l as f32;
-            let k = 1.0 / (1u32 << l) as f32;
-            let a = self.bilinear(l, u * k, v * k);
-            let b = self.bilinear(l + 1, u * k * 0.5, v * k * 0.5);
-            [0, 1, 2, 3].map(|c| a[c] + (b[c] - a[c]) * f)
+            let f = ((lod - l as f32) * 256.0) as u32;
+            let (a, b) = (self.bilinear(l, u, v), self.bilinear(l + 1, u, v));
+            // Back to bytes, then weighted as the texels were.
+            let byte = |x: u32| (x >> 8) & 0x00ff_00ff;
+            [0, 1].map(|k| byte(a[k]) * (256 - f) + byte(b[k]) * f)
         };
+        let [rb, ga] = t;
+        let scale = 1.0 / 65280.0;
         (
-            [t[0], t[1], t[2]].map(|c| c * (1.0 / 255.0)),
-            t[3] * (MAX_RELIEF / 255.0),
+            [rb & 0xffff, ga & 0xffff, rb >> 16].map(|x| x as f32 * scale),
+            (ga >> 16) as f32 * (scale * MAX_RELIEF),
         )
     }
 
-    /// Level `l` at `(u, v)` in its texels, bilinear, wrapping: bytes as floats.
-    fn bilinear(&self, l: usize, u: f32, v: f32) -> [f32; 4] {
+    /// Level `l` at finest-level fixed-point `(u, v)`, bilinear, wrapping: the four bytes
+    /// weighted in two words (see [`split`]).
+    fn bilinear(&self, l: usize, u: i32, v: i32) -> [u32; 2] {
         let level = &self.levels[l];
-        let mask = (SIDE >> l) - 1;
-        let ((uf, ui), (vf, vi)) = (floor(u - 0.5), floor(v - 0.5));
-        let (fu, fv) = (u - 0.5 - uf, v - 0.5 - vf);
+        let side = SIDE >> l;
+        let mask = side - 1;
+        // This level's texel centres are at half-integers.
+        let (u, v) = ((u >> l) - 128, (v >> l) - 128);
+        // Weights in 1/256, adding up to exactly 256.
+        let (wu, wv) = ((u & 255) as u32, (v & 255) as u32);
+        let w11 = (wu * wv) >> 8;
+        let w = [256 + w11 - wu - wv, wu - w11, wv - w11, w11];
         // Two's complement: masking wraps negative indices too.
-        let (i0, j0) = (ui as usize & mask, vi as usize & mask);
+        let (i0, j0) = ((u >> 8) as usize & mask, (v >> 8) as usize & mask);
         let (i1, j1) = ((i0 + 1) & mask, (j0 + 1) & mask);
-        let (row0, row1) = (j0 * (mask + 1), j1 * (mask + 1));
-        let (a, b) = (unpack(level[row0 + i0]), unpack(level[row0 + i1]));
-        let (c, d) = (unpack(level[row1 + i0]), unpack(level[row1 + i1]));
-        [0, 1, 2, 3].map(|k| {
-            let top = a[k] + (b[k] - a[k]) * fu;
-            let bottom = c[k] + (d[k] - c[k]) * fu;
-            top + (bottom - top) * fv
+        let (row0, row1) = (j0 * side, j1 * side);
+        let taps = [
+            level[row0 + i0],
+            level[row0 + i1],
+            level[row1 + i0],
+            level[row1 + i1],
+        ];
+        // The weights add up to 256, so no byte's sum spills into the next.
+        taps.iter().zip(w).fold([0, 0], |[rb, ga], (&t, w)| {
+            let [x, y] = split(t, w);
+            [rb + x, ga + y]
         })
     }
 }
 
-fn unpack(t: u32) -> [f32; 4] {
-    [0, 8, 16, 24].map(|s| ((t >> s) & 0xff) as f32)
+/// A packed texel's bytes times `w` (at most 256), as two words of two 16-bit lanes:
+/// bytes 0 and 2 in the first, 1 and 3 in the second (one multiply each; "SIMD within a
+/// register").
+fn split(t: u32, w: u32) -> [u32; 2] {
+    [(t & 0x00ff_00ff) * w, ((t >> 8) & 0x00ff_00ff) * w]
 }
 
-/// Linear colour and relief to packed texels.
+/// A row-major level, linear colour and relief, to packed texels.
 fn pack(level: &[[f32; 4]]) -> Vec<u32> {
     let byte = |x: f32| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u32;
     level

@@ -1,4 +1,7 @@
-//! The soil's relief under the camera's sun, baked once per camera.
+//! The ground's relief under the camera's sun, baked once per camera: for every texel of a
+//! patch, Lambert on the height field's normal and a shadow test by marching towards the
+//! sun over the height field (the texel-by-texel form of horizon mapping, Max 1988,
+//! "Horizon mapping: shadows for bump-mapped surfaces").
 
 use rayon::prelude::*;
 

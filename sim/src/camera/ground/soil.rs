@@ -15,5 +15,5 @@ pub(super) fn generate() -> Tile {
         .collect();
     lumps::lay(&mut texels);
     debris::scatter(&mut texels);
-    Tile::finish(&texels, 0.14, 0.3, 1.15)
+    Tile::finish(&texels, 0.18, 0.2, 1.15)
 }

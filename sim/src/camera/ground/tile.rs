@@ -28,7 +28,7 @@ pub(super) struct Texel {
 
 impl Texel {
     /// Puts a surface of height `h` and colour `c` over a share `cover` of the texel, where
-    /// it is higher than what is there (blended over a quarter texel of height).
+    /// it is higher than what is there (blended over half a texel of height).
     pub fn over(&mut self, h: f32, c: [f32; 3], cover: f32) {
         let a = cover * ((h - self.h) * 2.0 + 0.5).clamp(0.0, 1.0);
         if a > 0.0 {
