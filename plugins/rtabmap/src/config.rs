@@ -6,6 +6,8 @@ use slam_common::backend::BackendConfig;
 use slam_common::occupancy::OccupancyGridConfig;
 use slam_common::scan2d::Icp2dConfig;
 
+use crate::proximity::ProximityConfig;
+
 /// Where the odometry between locations comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -30,6 +32,7 @@ pub struct Config {
     pub icp: ScanOdometryConfig,
     pub memory: MemoryConfig,
     pub loop_closure: LoopClosureConfig,
+    pub proximity: ProximityConfig,
     /// Odometry links' standard deviations (the link covariance RTAB-Map takes from its
     /// odometry), per metre travelled plus a floor.
     pub odometry_link: LinkSigmas,
@@ -52,6 +55,7 @@ impl Default for Config {
             icp: ScanOdometryConfig::default(),
             memory: MemoryConfig::default(),
             loop_closure: LoopClosureConfig::default(),
+            proximity: ProximityConfig::default(),
             odometry_link: LinkSigmas::default(),
             // RTAB-Map's `Grid/RangeMax`: beyond, a level scan plane draws the uneven ground.
             grid: OccupancyGridConfig {
@@ -293,10 +297,10 @@ pub struct LinkSigmas {
 impl Default for LinkSigmas {
     fn default() -> Self {
         Self {
-            rad_floor: 0.002,
-            rad_per_m: 0.01,
+            rad_floor: 0.001,
+            rad_per_m: 0.002,
             m_floor: 0.005,
-            m_per_m: 0.02,
+            m_per_m: 0.01,
         }
     }
 }

@@ -12,8 +12,10 @@
 //! 3. loop-closure detection: tf-idf likelihoods of the locations in working memory and a
 //!    discrete Bayes filter over them ([`bayes`]); a hypothesis above the threshold is
 //!    verified by PnP between the two images;
-//! 4. the graph of locations on the shared backend ([`graph`]): a verified loop closure is
-//!    kept only if, after optimisation, no link is strained beyond `OptimizeMaxError`.
+//! 4. proximity detection ([`proximity`]): a location near an older one in the graph is
+//!    registered to it by ICP on their laser scans;
+//! 5. the graph of locations on the shared backend ([`graph`]): a loop closure is kept only
+//!    if, after optimisation, no link is strained beyond `OptimizeMaxError`.
 //!
 //! Outputs: the odometry poses as they come (corrected by the graph), and at the end the
 //! trajectory carried by the optimised locations, a point cloud from the locations' depth,
@@ -28,6 +30,7 @@ pub mod graph;
 pub mod matching;
 pub mod memory;
 pub mod pnp;
+pub mod proximity;
 pub mod scan_odometry;
 mod system;
 pub mod visual_odometry;

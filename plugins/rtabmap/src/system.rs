@@ -13,6 +13,7 @@ use crate::features::{Features, Image, extract};
 use crate::graph::{LinkKind, LoopOutcome, PoseGraph, Sigmas, Strain};
 use crate::memory::{Hypothesis, Location, Memory};
 use crate::pnp::{self, PnpConfig};
+use crate::proximity;
 use crate::scan_odometry::{ScanOdometry, planar, spatial};
 use crate::visual_odometry::{Tracking, VisualOdometry};
 
@@ -168,6 +169,9 @@ impl Rtabmap {
         if let Some(h) = hypothesis {
             self.close_loop(id, h)?;
         }
+        if self.cfg.proximity.enabled {
+            self.close_by_proximity(id)?;
+        }
         Ok(())
     }
 
@@ -212,9 +216,27 @@ impl Rtabmap {
             old_from_new = spatial(&planar(&old_from_new));
         }
         let sigmas = self.loop_sigmas(&object, &pixels, &result);
+        self.add_loop_link(
+            h.id,
+            new,
+            old_from_new,
+            sigmas,
+            &format!("{head}: {inliers} PnP inliers"),
+        )
+    }
+
+    /// Adds a verified loop link `old → new` to the graph and says what became of it.
+    fn add_loop_link(
+        &mut self,
+        old: u64,
+        new: u64,
+        old_from_new: Isometry3<f64>,
+        sigmas: Sigmas,
+        what: &str,
+    ) -> Result<(), PluginError> {
         let outcome = self
             .graph
-            .add_loop(h.id, new, old_from_new, sigmas)
+            .add_loop(old, new, old_from_new, sigmas)
             .map_err(|e| Self::error("factor graph")(e.to_string()))?;
         let strain = |s: &Strain| {
             format!(
@@ -228,23 +250,123 @@ impl Rtabmap {
                 s.to
             )
         };
+        let stamp = self.memory.location(new).stamp_ns;
         match outcome {
             LoopOutcome::Accepted(s) => self.event(
-                new_stamp,
+                stamp,
                 EventKind::LoopClosureAccepted,
-                format!("{head}: {inliers} PnP inliers, {}", strain(&s)),
+                format!("{what}, {}", strain(&s)),
             ),
             LoopOutcome::Rejected(s) => self.event(
-                new_stamp,
+                stamp,
                 EventKind::LoopClosureRejected,
                 format!(
-                    "{head}: {inliers} PnP inliers, but after optimisation {} > {} (OptimizeMaxError); graph restored",
+                    "{what}, but after optimisation {} > {} (OptimizeMaxError); graph restored",
                     strain(&s),
-                    cfg.optimize_max_error
+                    self.cfg.loop_closure.optimize_max_error
                 ),
             ),
         }
         Ok(())
+    }
+
+    /// Proximity detection: registers the new location's scan to the nearest old location's
+    /// near it in the graph.
+    fn close_by_proximity(&mut self, new: u64) -> Result<(), PluginError> {
+        let planar_pose =
+            |graph: &PoseGraph, l: &Location| planar(&graph.pose(l.id).unwrap_or(l.odom_from_base));
+        let newest = self.memory.location(new);
+        let Some(new_scan) = newest.scan.as_ref() else {
+            return Ok(());
+        };
+        let this = proximity::Candidate {
+            id: new,
+            stamp_ns: newest.stamp_ns,
+            map_from_base: planar_pose(&self.graph, newest),
+        };
+        let older = self.memory.locations()[..new as usize]
+            .iter()
+            .filter(|l| l.scan.is_some())
+            .map(|l| proximity::Candidate {
+                id: l.id,
+                stamp_ns: l.stamp_ns,
+                map_from_base: planar_pose(&self.graph, l),
+            });
+        let Some(old) = proximity::nearest(&this, older, &self.cfg.proximity) else {
+            return Ok(());
+        };
+        // The old location's scan with its neighbours', in its frame: one scan holds a
+        // trunk or two within range, too few to register on their own.
+        let reach = self.cfg.proximity.submap_neighbours as u64;
+        let mut old_scan = Vec::new();
+        for l in &self.memory.locations()
+            [old.id.saturating_sub(reach) as usize..=(old.id + reach).min(new - 1) as usize]
+        {
+            if let Some(scan) = &l.scan {
+                let old_from_l = old.map_from_base.inverse() * planar_pose(&self.graph, l);
+                old_scan.extend(
+                    self.scan_in_base(scan)
+                        .iter()
+                        .map(|p| (old_from_l * nalgebra::Point2::from(*p)).coords),
+                );
+            }
+        }
+        let new_scan = self.scan_in_base(new_scan);
+        let guess = old.map_from_base.inverse() * this.map_from_base;
+        let head = format!(
+            "location {new} (t_ns={}) with location {} (t_ns={}) by proximity",
+            this.stamp_ns, old.id, old.stamp_ns
+        );
+        match proximity::register(
+            &old_scan,
+            &new_scan,
+            guess,
+            &self.cfg.icp.icp,
+            &self.cfg.proximity,
+        ) {
+            Err(why) => {
+                self.event(
+                    this.stamp_ns,
+                    EventKind::LoopClosureRejected,
+                    format!("{head}: {why}"),
+                );
+                Ok(())
+            }
+            Ok(result) => {
+                let sigma_m = (result.rmse_m / (result.inliers.max(1) as f64).sqrt())
+                    .max(self.cfg.loop_closure.min_sigma_m);
+                let sigmas = Sigmas {
+                    rad: self.cfg.loop_closure.min_sigma_rad,
+                    m: sigma_m,
+                };
+                let what = format!(
+                    "{head}: ICP matched {:.0}% of the scan, rmse {:.3} m",
+                    result.correspondence_ratio * 100.0,
+                    result.rmse_m
+                );
+                self.add_loop_link(
+                    old.id,
+                    new,
+                    spatial(&result.target_from_source),
+                    sigmas,
+                    &what,
+                )
+            }
+        }
+    }
+
+    /// A scan's points (sensor frame, within the ICP range) in the base frame, planar.
+    fn scan_in_base(&self, scan: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
+        let base_from_scan = planar(&self.base_from_scan);
+        let max = if self.cfg.icp.max_range_m > 0.0 {
+            self.cfg.icp.max_range_m
+        } else {
+            f64::INFINITY
+        };
+        scan.iter()
+            .filter(|p| p.norm() <= max)
+            .map(|p| (base_from_scan * nalgebra::Point2::from(*p)).coords)
+            .collect()
     }
 
     /// A loop link's standard deviations from how well the inliers fit: the median
