@@ -18,16 +18,16 @@ use slam_common::scan2d::points_from_ranges;
 
 const FRAME_NS: i64 = 33_333_333;
 
+/// Where a rendered frame's optical frame truly was, and its features.
+type Frame = (Isometry3<f64>, rtabmap::features::Features);
+
+/// A pose of the truth and of the odometry at the same scan.
+type Pair = (Isometry3<f64>, Isometry2<f64>);
+
 /// Renders `count` consecutive camera frames of S1's first lane at full speed (default
 /// world: identical plants, growth stage 3, camera noise on), from t = 20 s: each frame's
 /// features and where its optical frame truly was.
-fn rendered_frames(
-    count: i64,
-) -> (
-    Vec<(Isometry3<f64>, rtabmap::features::Features)>,
-    [f64; 4],
-    Isometry3<f64>,
-) {
+fn rendered_frames(count: i64) -> (Vec<Frame>, [f64; 4], Isometry3<f64>) {
     let config = SimConfig::default();
     let sim = Simulation::new(&config, "s1", 0).expect("S1 builds");
     let cam = sim::camera::RgbdCamera::new(&config.sensors.camera, &sim.world);
@@ -145,10 +145,7 @@ fn scan_odometry_error_s0(icp: bool) -> f64 {
         ..SensorSet::default()
     };
     let base_r_imu = config.sensors.imu.mount.base_from_sensor().rotation;
-    let mut ends: Option<(
-        (Isometry3<f64>, Isometry2<f64>),
-        (Isometry3<f64>, Isometry2<f64>),
-    )> = None;
+    let mut ends: Option<(Pair, Pair)> = None;
     for m in sim.stream(sensors) {
         match m {
             Message::WheelOdometry(w) => {

@@ -64,13 +64,3 @@ pub fn ate(folder: &Path, file: &str) -> f64 {
         .as_f64()
         .expect("rmse")
 }
-
-/// How many events of `kind` a results folder's `events.json` holds.
-pub fn count_events(folder: &Path, kind: &str) -> usize {
-    json(&folder.join("events.json"))
-        .as_array()
-        .expect("events are a list")
-        .iter()
-        .filter(|e| e["kind"] == kind)
-        .count()
-}

@@ -214,7 +214,12 @@ mod tests {
         let matches = match_descriptors(
             &query,
             &train,
-            Some((&projections, &grid, &pixels, 40.0)),
+            Some(Window {
+                projections: &projections,
+                grid: &grid,
+                pixels: &pixels,
+                radius_px: 40.0,
+            }),
             0.8,
         );
         assert_eq!(
