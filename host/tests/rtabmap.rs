@@ -315,7 +315,7 @@ fn event_positions(folder: &std::path::Path, detail: &str) -> Option<(Vector2<f6
 /// errors with and without are printed: on this route the odometry is already good, and the
 /// loops do not lower it measurably.)
 #[test]
-fn true_loops_are_closed_in_s1_and_the_error_drops() {
+fn true_loops_are_closed_in_s1() {
     let dir = tempfile::tempdir().expect("temp dir");
     let with = run(dir.path(), "s1", "rtabmap", "with-loops", "");
     let without = run(
