@@ -5,7 +5,7 @@
 //! keyframes or their estimates change.
 
 use nalgebra::{Point3, Vector3};
-use slam_common::kdtree::KdTree;
+use slam_common::kdtree::KdTree3;
 use slam_common::voxel::downsample;
 
 use crate::config::MappingConfig;
@@ -14,8 +14,8 @@ use crate::keyframe::KeyframeView;
 /// Feature maps in the world frame.
 #[derive(Debug, Clone, Default)]
 pub struct LocalMap {
-    pub corners: KdTree,
-    pub surfs: KdTree,
+    pub corners: KdTree3,
+    pub surfs: KdTree3,
 }
 
 impl LocalMap {
@@ -61,8 +61,8 @@ impl LocalMap {
             surfs.extend(k.features.surfs.iter().map(to_world));
         }
         Self {
-            corners: KdTree::new(downsample(&corners, cfg.corner_leaf_m)),
-            surfs: KdTree::new(downsample(&surfs, cfg.surf_leaf_m)),
+            corners: KdTree3::new(downsample(&corners, cfg.corner_leaf_m)),
+            surfs: KdTree3::new(downsample(&surfs, cfg.surf_leaf_m)),
         }
     }
 }

@@ -7,7 +7,7 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use slam_common::geometry::{Line, Plane, fit_line, fit_plane};
-use slam_common::kdtree::{KdTree, Neighbour};
+use slam_common::kdtree::{KdTree3, Neighbour};
 use slam_common::lsq::{NormalEquations, apply, converged};
 
 use crate::config::MappingConfig;
@@ -125,7 +125,7 @@ const RESEARCH_LEVER_M: f64 = 10.0;
 
 /// The `cfg.neighbours` nearest map points of `q`, if the farthest is close enough.
 fn neighbours(
-    tree: &KdTree,
+    tree: &KdTree3,
     q: &Vector3<f64>,
     cfg: &MappingConfig,
     nb: &mut Vec<Neighbour>,

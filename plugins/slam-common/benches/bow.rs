@@ -2,15 +2,14 @@
 //! adding a location to vocabularies of 20k and 100k words, and scoring a location against
 //! every indexed one.
 //!
-//! The vocabularies come from a simulated route (as in `tests/bow.rs`): every location sees
-//! 500 landmarks, 250 of them seen by the previous location too; landmarks come in families
-//! of four differing from a prototype by 12–24 bits, and an observation flips 0–10 bits.
-//! Added locations are of three kinds: the next location of the route (250 re-observed, 250
-//! new landmarks), a revisit of an old location (500 re-observed: a loop closure), and a
-//! location of landmarks never seen (500 new words, the index's worst case). Only
-//! `add_signature` is timed; the signature is removed again after each, which returns the
-//! vocabulary to its size. `100k-r1` repeats the 100k cases at probe radius 1 (exact within
-//! 32 bits instead of 48).
+//! The vocabularies come from the simulated route of `tests/support/bow_route.rs`, as in
+//! `tests/bow.rs`: every location sees 500 landmarks, 250 of them seen by the previous
+//! location too. Added locations are of three kinds: the next location of the route (250
+//! re-observed, 250 new landmarks), a revisit of an old location (500 re-observed: a loop
+//! closure), and a location of landmarks never seen (500 new words, the index's worst
+//! case). Only `add_signature` is timed; the signature is removed again after each, which
+//! returns the vocabulary to its size. `100k-r1` repeats the 100k cases at probe radius 1
+//! (exact within 32 bits instead of 48).
 //!
 //! `cargo bench -p vinebench-slam-common --bench bow`
 
@@ -18,48 +17,23 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use rand::seq::index::sample;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use slam_common::bow::{Descriptor, SignatureId, Vocabulary, VocabularyConfig};
 
+#[path = "../tests/support/bow_route.rs"]
+mod bow_route;
+
+use bow_route::{Route, landmarks, observe};
+
 const PER_LOCATION: usize = 500;
 const STRIDE: usize = 250;
+const ROUTE: Route = Route {
+    per_location: PER_LOCATION,
+    stride: STRIDE,
+};
 /// Query sets per case, cycled through.
 const VARIANTS: usize = 8;
-
-fn flip(d: &Descriptor, bits: usize, rng: &mut ChaCha8Rng) -> Descriptor {
-    let mut out = *d;
-    for b in sample(rng, 256, bits) {
-        out[b / 8] ^= 1 << (b % 8);
-    }
-    out
-}
-
-fn observe(d: &Descriptor, rng: &mut ChaCha8Rng) -> Descriptor {
-    let bits = rng.random_range(0..=10);
-    flip(d, bits, rng)
-}
-
-fn landmarks(n: usize, rng: &mut ChaCha8Rng) -> Vec<Descriptor> {
-    let mut out = Vec::with_capacity(n);
-    while out.len() < n {
-        let prototype: Descriptor = rng.random();
-        for _ in 0..4 {
-            let bits = rng.random_range(12..=24);
-            out.push(flip(&prototype, bits, rng));
-        }
-    }
-    out.truncate(n);
-    out
-}
-
-fn location(world: &[Descriptor], k: usize, rng: &mut ChaCha8Rng) -> Vec<Descriptor> {
-    world[k * STRIDE..k * STRIDE + PER_LOCATION]
-        .iter()
-        .map(|d| observe(d, rng))
-        .collect()
-}
 
 struct Setup {
     vocabulary: Vocabulary,
@@ -72,11 +46,11 @@ struct Setup {
 /// location.
 fn setup(words: usize, config: VocabularyConfig, rng: &mut ChaCha8Rng) -> Setup {
     let locations = words / STRIDE;
-    let world = landmarks((locations + 1) * STRIDE + PER_LOCATION, rng);
+    let world = ROUTE.world(locations + 1, rng);
     let mut vocabulary = Vocabulary::new(config);
     let start = Instant::now();
     for k in 0..locations {
-        vocabulary.add_signature(k as SignatureId, &location(&world, k, rng));
+        vocabulary.add_signature(k as SignatureId, &ROUTE.location(&world, k, rng));
     }
     eprintln!(
         "{} words, {} signatures, built in {:.1} s",
@@ -126,10 +100,10 @@ fn bench(c: &mut Criterion) {
             world,
         } = setup(words, config, &mut rng);
         let next: Vec<Vec<Descriptor>> = (0..VARIANTS)
-            .map(|_| location(&world, locations, &mut rng))
+            .map(|_| ROUTE.location(&world, locations, &mut rng))
             .collect();
         let revisit: Vec<Vec<Descriptor>> = (0..VARIANTS)
-            .map(|i| location(&world, i * locations / VARIANTS, &mut rng))
+            .map(|i| ROUTE.location(&world, i * locations / VARIANTS, &mut rng))
             .collect();
         let unseen: Vec<Vec<Descriptor>> = (0..VARIANTS)
             .map(|_| {

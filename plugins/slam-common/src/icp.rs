@@ -7,7 +7,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::geometry::fit_plane;
-use crate::kdtree::KdTree;
+use crate::kdtree::KdTree3;
 use crate::lsq::{NormalEquations, apply, converged};
 
 /// A target cloud ready for ICP: its k-d tree and the normal at each point where the
@@ -15,7 +15,7 @@ use crate::lsq::{NormalEquations, apply, converged};
 /// target points never are).
 #[derive(Debug, Clone)]
 pub struct IcpTarget {
-    tree: KdTree,
+    tree: KdTree3,
     normals: Vec<Option<Option<Vector3<f64>>>>,
     neighbours: usize,
     max_plane_distance_m: f64,
@@ -25,7 +25,7 @@ impl IcpTarget {
     pub fn new(points: Vec<Vector3<f64>>, neighbours: usize, max_plane_distance_m: f64) -> Self {
         let normals = vec![None; points.len()];
         Self {
-            tree: KdTree::new(points),
+            tree: KdTree3::new(points),
             normals,
             neighbours,
             max_plane_distance_m,

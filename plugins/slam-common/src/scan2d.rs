@@ -4,7 +4,8 @@
 //! - [`points_from_ranges`], [`no_return_directions`]: a ROS `sensor_msgs/LaserScan` as
 //!   points and as the directions of its rays that met nothing (REP 117: `+inf`);
 //! - [`downsample`]: grid thinning of a point set (RTAB-Map's `Icp/VoxelSize`);
-//! - [`KdTree2`]: a static 2-d tree for nearest neighbours;
+//! - [`KdTree2`]: the static k-d tree of [`crate::kdtree`] over 2-d points, for nearest
+//!   neighbours;
 //! - [`Icp2dTarget`], [`icp2d`]: point-to-line ICP.
 //!
 //! # ICP
@@ -54,6 +55,7 @@
 use nalgebra::{Isometry2, Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
 use serde::Deserialize;
 
+pub use crate::kdtree::KdTree2;
 use crate::kdtree::Neighbour;
 
 /// Points of a ROS `LaserScan` in the sensor frame: sample `i` is at angle `angle_min_rad +
@@ -119,142 +121,6 @@ pub fn downsample(points: &[Vector2<f64>], leaf_m: f64) -> Vec<Vector2<f64>> {
         .chunk_by(|a, b| a.0 == b.0)
         .map(|cell| cell.iter().map(|k| k.1).sum::<Vector2<f64>>() / cell.len() as f64)
         .collect()
-}
-
-/// Subranges at most this long are leaves of a [`KdTree2`].
-const LEAF: usize = 8;
-
-/// A static 2-d tree (Friedman, Bentley and Finkel, ACM TOMS 1977), the planar twin of
-/// [`crate::kdtree::KdTree`]: points reordered in place, every subrange's middle element
-/// splitting it along the axis of largest spread. Indices returned by queries refer to
-/// [`KdTree2::point`]. Deterministic: the same input gives the same tree and answers.
-#[derive(Debug, Clone, Default)]
-pub struct KdTree2 {
-    points: Vec<Vector2<f64>>,
-    /// Split axis of the subrange whose middle element sits at this index.
-    axis: Vec<u8>,
-}
-
-impl KdTree2 {
-    pub fn new(mut points: Vec<Vector2<f64>>) -> Self {
-        let mut axis = vec![0u8; points.len()];
-        build(&mut points, &mut axis);
-        Self { points, axis }
-    }
-
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
-    pub fn point(&self, index: usize) -> &Vector2<f64> {
-        &self.points[index]
-    }
-
-    pub fn points(&self) -> &[Vector2<f64>] {
-        &self.points
-    }
-
-    /// The `k` nearest points to `query` closer than `max_distance_sq` (squared), nearest
-    /// first, written into `out` (cleared first).
-    pub fn nearest(
-        &self,
-        query: &Vector2<f64>,
-        k: usize,
-        max_distance_sq: f64,
-        out: &mut Vec<Neighbour>,
-    ) {
-        out.clear();
-        if k == 0 {
-            return;
-        }
-        let mut search = Search {
-            query,
-            k,
-            worst: max_distance_sq,
-            out,
-        };
-        search.visit(self, 0, self.points.len());
-    }
-
-    /// The nearest point, if any is closer than `max_distance_sq` (squared).
-    pub fn nearest_one(&self, query: &Vector2<f64>, max_distance_sq: f64) -> Option<Neighbour> {
-        let mut out = Vec::with_capacity(1);
-        self.nearest(query, 1, max_distance_sq, &mut out);
-        out.first().copied()
-    }
-}
-
-fn build(points: &mut [Vector2<f64>], axis: &mut [u8]) {
-    if points.len() <= LEAF {
-        return;
-    }
-    let (lo, hi) = points.iter().fold(
-        (
-            Vector2::repeat(f64::INFINITY),
-            Vector2::repeat(f64::NEG_INFINITY),
-        ),
-        |(lo, hi), p| (lo.inf(p), hi.sup(p)),
-    );
-    let a = (hi - lo).imax();
-    let mid = points.len() / 2;
-    points.select_nth_unstable_by(mid, |p, q| p[a].total_cmp(&q[a]));
-    axis[mid] = a as u8;
-    let (left, right) = points.split_at_mut(mid);
-    let (axis_left, axis_right) = axis.split_at_mut(mid);
-    build(left, axis_left);
-    build(&mut right[1..], &mut axis_right[1..]);
-}
-
-struct Search<'a> {
-    query: &'a Vector2<f64>,
-    k: usize,
-    /// Squared distance a candidate must beat: the k-th best so far, or the limit.
-    worst: f64,
-    out: &'a mut Vec<Neighbour>,
-}
-
-impl Search<'_> {
-    #[inline(always)]
-    fn offer(&mut self, index: usize, distance_sq: f64) {
-        if distance_sq >= self.worst {
-            return;
-        }
-        let at = self.out.partition_point(|n| n.distance_sq <= distance_sq);
-        if self.out.len() == self.k {
-            self.out.pop();
-        }
-        self.out.insert(at, Neighbour { index, distance_sq });
-        if self.out.len() == self.k {
-            self.worst = self.out[self.k - 1].distance_sq;
-        }
-    }
-
-    fn visit(&mut self, tree: &KdTree2, lo: usize, hi: usize) {
-        if hi - lo <= LEAF {
-            for i in lo..hi {
-                self.offer(i, (tree.points[i] - self.query).norm_squared());
-            }
-            return;
-        }
-        let mid = lo + (hi - lo) / 2;
-        let a = tree.axis[mid] as usize;
-        let p = &tree.points[mid];
-        let gap = self.query[a] - p[a];
-        let (near, far) = if gap < 0.0 {
-            ((lo, mid), (mid + 1, hi))
-        } else {
-            ((mid + 1, hi), (lo, mid))
-        };
-        self.visit(tree, near.0, near.1);
-        self.offer(mid, (p - self.query).norm_squared());
-        if gap * gap < self.worst {
-            self.visit(tree, far.0, far.1);
-        }
-    }
 }
 
 /// Steps taken at one coarse gate before it is halved anyway (see the module docs).
@@ -668,30 +534,6 @@ pub fn icp2d(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
-
-    #[test]
-    fn nearest_matches_brute_force() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let mut random =
-            || Vector2::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0));
-        let points: Vec<_> = (0..3000).map(|_| random()).collect();
-        let tree = KdTree2::new(points.clone());
-        let mut out = Vec::new();
-        for _ in 0..200 {
-            let q = random();
-            tree.nearest(&q, 4, 1.0, &mut out);
-            let mut brute: Vec<f64> = points
-                .iter()
-                .map(|p| (p - q).norm_squared())
-                .filter(|d| *d < 1.0)
-                .collect();
-            brute.sort_by(f64::total_cmp);
-            brute.truncate(4);
-            let got: Vec<f64> = out.iter().map(|n| n.distance_sq).collect();
-            assert_eq!(got, brute, "4 nearest of {q:?}");
-        }
-    }
 
     #[test]
     fn one_centroid_per_cell_in_cell_order() {

@@ -1,14 +1,13 @@
 //! The bag-of-words vocabulary from outside the crate: re-observed places are recognised,
 //! unrelated ones add words, memory management deletes orphan words, the tf-idf and
 //! likelihood formulas against hand-computed values, and the multi-index hash against a
-//! linear scan on a simulated vineyard route.
-//!
-//! Simulated data: a route of locations, each seeing 300 landmarks, half of them seen by the
-//! previous location too. Landmarks come in families of four (a vineyard repeats itself:
-//! similar leaves, posts, wires) whose members differ from a common prototype by 12–24 bits,
-//! and an observation is the landmark's descriptor with 0–10 bits flipped.
+//! linear scan on a simulated vineyard route (`support/bow_route.rs`) whose locations each
+//! see 300 landmarks, half of them seen by the previous location too.
 
-use rand::seq::index::sample;
+#[path = "support/bow_route.rs"]
+mod bow_route;
+
+use bow_route::{Route, flip, landmarks, observe};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slam_common::bow::{
@@ -18,38 +17,10 @@ use slam_common::bow::{
 
 const PER_LOCATION: usize = 300;
 const STRIDE: usize = 150;
-
-fn flip(d: &Descriptor, bits: usize, rng: &mut ChaCha8Rng) -> Descriptor {
-    let mut out = *d;
-    for b in sample(rng, 256, bits) {
-        out[b / 8] ^= 1 << (b % 8);
-    }
-    out
-}
-
-fn observe(d: &Descriptor, rng: &mut ChaCha8Rng) -> Descriptor {
-    let bits = rng.random_range(0..=10);
-    flip(d, bits, rng)
-}
-
-/// Landmark descriptors: families of four around random prototypes.
-fn landmarks(n: usize, rng: &mut ChaCha8Rng) -> Vec<Descriptor> {
-    let mut out = Vec::with_capacity(n);
-    while out.len() < n {
-        let prototype: Descriptor = rng.random();
-        for _ in 0..4 {
-            let bits = rng.random_range(12..=24);
-            out.push(flip(&prototype, bits, rng));
-        }
-    }
-    out.truncate(n);
-    out
-}
-
-/// Landmarks seen from location `k`.
-fn seen(k: usize) -> std::ops::Range<usize> {
-    k * STRIDE..k * STRIDE + PER_LOCATION
-}
+const ROUTE: Route = Route {
+    per_location: PER_LOCATION,
+    stride: STRIDE,
+};
 
 /// Adds locations `0..n` of the route (signature id = location); returns each location's
 /// words, in landmark order.
@@ -60,11 +31,7 @@ fn drive(
     rng: &mut ChaCha8Rng,
 ) -> Vec<Vec<WordId>> {
     (0..n)
-        .map(|k| {
-            let descriptors: Vec<Descriptor> =
-                world[seen(k)].iter().map(|d| observe(d, rng)).collect();
-            vocabulary.add_signature(k as SignatureId, &descriptors)
-        })
+        .map(|k| vocabulary.add_signature(k as SignatureId, &ROUTE.location(world, k, rng)))
         .collect()
 }
 
@@ -79,15 +46,12 @@ fn argmax(scores: &[(SignatureId, f64)]) -> SignatureId {
 #[test]
 fn revisited_location_maps_to_its_words_and_scores_highest() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let world = landmarks(41 * STRIDE + PER_LOCATION, &mut rng);
+    let world = ROUTE.world(41, &mut rng);
     let mut vocabulary = Vocabulary::default();
     let words = drive(&mut vocabulary, &world, 40, &mut rng);
 
     for k in [0, 17, 39] {
-        let revisit: Vec<Descriptor> = world[seen(k)]
-            .iter()
-            .map(|d| observe(d, &mut rng))
-            .collect();
+        let revisit = ROUTE.location(&world, k, &mut rng);
         let before = vocabulary.word_count();
         let quantised = vocabulary.quantize(&revisit);
         assert_eq!(vocabulary.word_count(), before, "quantize adds nothing");
@@ -120,7 +84,7 @@ fn revisited_location_maps_to_its_words_and_scores_highest() {
 #[test]
 fn unrelated_locations_create_new_words() {
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let world = landmarks(20 * STRIDE + PER_LOCATION, &mut rng);
+    let world = ROUTE.world(20, &mut rng);
     let mut vocabulary = Vocabulary::default();
     let words = drive(&mut vocabulary, &world, 20, &mut rng);
     let newest = words.iter().flatten().max().copied().expect("words");
@@ -181,7 +145,7 @@ fn single_word_counts_its_missing_second_neighbour_at_the_search_radius() {
 #[test]
 fn removing_signatures_deletes_orphan_words() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let world = landmarks(3 * STRIDE + PER_LOCATION, &mut rng);
+    let world = ROUTE.world(3, &mut rng);
     let mut vocabulary = Vocabulary::default();
     let words = drive(&mut vocabulary, &world, 2, &mut rng);
     assert_eq!(vocabulary.signature_count(), 2);
@@ -211,10 +175,7 @@ fn removing_signatures_deletes_orphan_words() {
         assert!(vocabulary.descriptor(w).is_some());
     }
     // The deleted words are gone from the search structure too.
-    let first: Vec<Descriptor> = world[seen(0)]
-        .iter()
-        .map(|d| observe(d, &mut rng))
-        .collect();
+    let first = ROUTE.location(&world, 0, &mut rng);
     for (q, d) in vocabulary.quantize(&first).iter().zip(&first) {
         if let Some(q) = q {
             assert!(!only_first.contains(q));
@@ -334,7 +295,7 @@ fn brute_two(vocabulary: &Vocabulary, q: &Descriptor) -> [Option<WordMatch>; 2] 
 fn multi_index_hash_agrees_with_linear_scan() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let locations = 140;
-    let world = landmarks((locations + 10) * STRIDE + PER_LOCATION, &mut rng);
+    let world = ROUTE.world(locations + 10, &mut rng);
     let mut vocabulary = Vocabulary::default();
     drive(&mut vocabulary, &world, locations, &mut rng);
     // Memory management: every third location leaves, then the route goes on, so the index
@@ -343,11 +304,7 @@ fn multi_index_hash_agrees_with_linear_scan() {
         vocabulary.remove_signature(k as SignatureId);
     }
     for k in locations..locations + 10 {
-        let descriptors: Vec<Descriptor> = world[seen(k)]
-            .iter()
-            .map(|d| observe(d, &mut rng))
-            .collect();
-        vocabulary.add_signature(k as SignatureId, &descriptors);
+        vocabulary.add_signature(k as SignatureId, &ROUTE.location(&world, k, &mut rng));
     }
     let radius = vocabulary.search_radius();
     let nndr = vocabulary.config().nndr;
@@ -416,7 +373,7 @@ fn multi_index_hash_agrees_with_linear_scan() {
 fn deterministic() {
     let build = || {
         let mut rng = ChaCha8Rng::seed_from_u64(6);
-        let world = landmarks(30 * STRIDE + PER_LOCATION, &mut rng);
+        let world = ROUTE.world(30, &mut rng);
         let mut vocabulary = Vocabulary::new(VocabularyConfig {
             nndr: 0.8,
             probe_radius: 1,
