@@ -37,25 +37,38 @@ fn angle_term_table() -> &'static [f32; 257] {
     })
 }
 
-/// [`axial_sigma_m`] from the cosine of the incidence angle, by table.
-fn sigma_from_cos(z: f32, cos: f32) -> f32 {
+/// [`axial_sigma_m`] from the cosine of the incidence angle, by [`angle_term_table`].
+fn sigma_from_cos(table: &[f32; 257], z: f32, cos: f32) -> f32 {
     let x = cos.clamp(0.0, 1.0) * 256.0;
     let k = (x as usize).min(255);
     let f = x - k as f32;
-    let table = angle_term_table();
     let a = table[k] + (table[k + 1] - table[k]) * f;
     (1.5 - 0.5 * z + 0.3 * z * z + 0.1 * z * z.sqrt() * a) * 1e-3
 }
 
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Effects {
+pub(crate) struct Effects<'a> {
     pub width: usize,
     pub min_depth_m: f32,
     pub max_depth_m: f32,
     pub depth_noise: bool,
     pub edge_dropout_ratio: f32,
-    pub rgb_sigma: f32,
+    /// The colour noise in levels by the sum of its two 10-bit uniforms (see
+    /// [`rgb_noise_table`]); empty: no colour noise.
+    pub rgb_noise: &'a [f32],
     pub seed: u64,
+}
+
+/// `rgb_sigma` times [`triangular`] noise, for every sum `a + b` of its two 10-bit
+/// uniforms (0..=2046): one load per channel instead of the arithmetic, same values.
+pub(crate) fn rgb_noise_table(rgb_sigma: f32) -> Vec<f32> {
+    (0..2047u64)
+        .map(|sum| {
+            // Any two uniforms with this sum: `triangular` sees only the sum (exact in f32).
+            let a = sum.min(1023);
+            rgb_sigma * triangular(a | (sum - a) << 10)
+        })
+        .collect()
 }
 
 fn splitmix64(mut z: u64) -> u64 {
@@ -81,24 +94,30 @@ fn triangular(bits: u64) -> f32 {
     ((a + b) / 1024.0 - 1.0) * 6.0f32.sqrt()
 }
 
-impl Effects {
-    /// Pixel `i`'s colour: linear RGB encoded with gamma 2 (the shader's albedos are
-    /// decoded with the same), plus noise.
-    pub fn colour(&self, i: usize, linear: &[f32; 3]) -> [u8; 3] {
-        let bits = if self.rgb_sigma > 0.0 {
-            splitmix64(self.seed ^ (2 * i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93))
-        } else {
-            0
-        };
-        let mut out = [0u8; 3];
-        for ch in 0..3 {
-            let mut c = linear[ch].max(0.0).sqrt() * 255.0;
-            if self.rgb_sigma > 0.0 {
-                c += self.rgb_sigma * triangular(bits >> (20 * ch));
-            }
-            out[ch] = (c.clamp(0.0, 255.0) + 0.5) as u8;
+impl Effects<'_> {
+    /// A row of pixels `first..` of colour: linear RGB encoded with gamma 2 (the shader's
+    /// albedos are decoded with the same), plus noise, three bytes a pixel. `linear` is
+    /// overwritten: the encoding is done in place, in three passes over the row.
+    pub fn colour_row(&self, first: usize, linear: &mut [[f32; 3]], out: &mut [u8]) {
+        for c in linear.as_flattened_mut() {
+            *c = c.max(0.0).sqrt() * 255.0;
         }
-        out
+        if !self.rgb_noise.is_empty() {
+            let noise = &self.rgb_noise[..2047];
+            for (i, c) in (first..).zip(linear.iter_mut()) {
+                let bits =
+                    splitmix64(self.seed ^ (2 * i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
+                for (ch, c) in c.iter_mut().enumerate() {
+                    // The two 10-bit uniforms of `triangular(bits >> (20 * ch))`, summed.
+                    let b = bits >> (20 * ch);
+                    *c += noise[((b & 0x3ff) + ((b >> 10) & 0x3ff)) as usize];
+                }
+            }
+        }
+        for (out, &c) in out.iter_mut().zip(linear.as_flattened()) {
+            // In [0.5, 255.5]: the conversion through i32 is exact and cheaper.
+            *out = ((c.clamp(0.0, 255.0) + 0.5) as i32) as u8;
+        }
     }
 
     /// Fills one band (pixels `first..`, whole rows) of the depth image from the whole
@@ -106,12 +125,13 @@ impl Effects {
     pub fn depth_band(&self, first: usize, depth: &[f32], cos_incidence: &[f32], out: &mut [f32]) {
         let w = self.width;
         let n = depth.len();
+        let table = angle_term_table();
         // Row by row: no integer division per pixel.
         for (r, out) in out.chunks_mut(w).enumerate() {
             let row = first + r * w;
             for (u, out) in out.iter_mut().enumerate() {
                 let i = row + u;
-                *out = self.depth_pixel(i, u, depth, cos_incidence, n);
+                *out = self.depth_pixel(table, i, u, depth, cos_incidence, n);
             }
         }
     }
@@ -119,6 +139,7 @@ impl Effects {
     #[inline]
     fn depth_pixel(
         &self,
+        table: &[f32; 257],
         i: usize,
         u: usize,
         depth: &[f32],
@@ -145,7 +166,7 @@ impl Effects {
             }
         }
         if self.depth_noise {
-            z + sigma_from_cos(z, cos_incidence[i]) * gaussian(self.seed, 2 * i as u64 + 1)
+            z + sigma_from_cos(table, z, cos_incidence[i]) * gaussian(self.seed, 2 * i as u64 + 1)
         } else {
             z
         }
@@ -168,7 +189,7 @@ mod tests {
         }
         for cos in [1.0f32, 0.9, 0.5, 0.2] {
             let (z, exact) = (3.0, axial_sigma_m(3.0, cos.acos()));
-            let tabled = sigma_from_cos(z, cos);
+            let tabled = sigma_from_cos(angle_term_table(), z, cos);
             assert!(
                 (tabled / exact - 1.0).abs() < 0.01,
                 "expected the table within 1 % of the formula at cos {cos}: {tabled} vs {exact}"

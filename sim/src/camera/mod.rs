@@ -92,6 +92,9 @@ pub struct RgbdCamera {
     light: Light,
     shadow: Option<ShadowMap>,
     ground: GroundTexture,
+    /// The colour noise by the sum of its uniforms (`depth_noise::rgb_noise_table`; empty
+    /// when `rgb_sigma` is 0).
+    rgb_noise: Vec<f32>,
 }
 
 impl RgbdCamera {
@@ -108,6 +111,11 @@ impl RgbdCamera {
             light,
             shadow,
             ground,
+            rgb_noise: if cfg.rgb_sigma > 0.0 {
+                depth_noise::rgb_noise_table(cfg.rgb_sigma as f32)
+            } else {
+                Vec::new()
+            },
         }
     }
 
@@ -148,11 +156,7 @@ impl RgbdCamera {
             } else {
                 0.0
             },
-            rgb_sigma: if noisy {
-                self.cfg.rgb_sigma as f32
-            } else {
-                0.0
-            },
+            rgb_noise: if noisy { &self.rgb_noise } else { &[] },
             seed,
         };
         let shader = Shader {
@@ -174,9 +178,16 @@ impl RgbdCamera {
             .zip(bins.par_iter())
             .enumerate()
             .for_each_init(
-                // Visibility buffer, reused by the bands a worker takes in turn.
-                || (vec![0.0f32; w * BAND_ROWS], vec![u32::MAX; w * BAND_ROWS]),
-                |(inv_z, ids), (band, (((rgb, z), cos), list))| {
+                // Visibility buffer and a row of linear colour, reused by the bands a
+                // worker takes in turn.
+                || {
+                    (
+                        vec![0.0f32; w * BAND_ROWS],
+                        vec![u32::MAX; w * BAND_ROWS],
+                        vec![[0.0f32; 3]; w],
+                    )
+                },
+                |(inv_z, ids, linear), (band, (((rgb, z), cos), list))| {
                     let first_row = band * BAND_ROWS;
                     let (inv_z, ids) = (&mut inv_z[..z.len()], &mut ids[..z.len()]);
                     inv_z.fill(0.0);
@@ -190,18 +201,20 @@ impl RgbdCamera {
                         .enumerate()
                     {
                         let v = first_row + r;
-                        for (u, ((rgb, z), cos)) in rgb
-                            .chunks_exact_mut(3)
+                        let (row_ids, row_inv_z) = (&ids[r * w..][..w], &inv_z[r * w..][..w]);
+                        for (u, (((lin, z), cos), (&id, &inv_z))) in linear
+                            .iter_mut()
                             .zip(z.iter_mut())
                             .zip(cos.iter_mut())
+                            .zip(row_ids.iter().zip(row_inv_z))
                             .enumerate()
                         {
-                            let k = r * w + u;
-                            let s = shader.shade(u, v, ids[k], inv_z[k]);
-                            rgb.copy_from_slice(&effects.colour(v * w + u, &s.rgb));
+                            let s = shader.shade(u, v, id, inv_z);
+                            *lin = s.rgb;
                             *z = s.depth;
                             *cos = s.cos_incidence;
                         }
+                        effects.colour_row(v * w, linear, rgb);
                     }
                 },
             );

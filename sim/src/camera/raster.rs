@@ -344,14 +344,15 @@ pub(crate) fn rasterize_band(
             let fy = py as f32;
             let Some((a, b)) = t.span(fy) else { continue };
             let row = (py - y0) as usize * width;
+            let span = row + a as usize..=row + b as usize;
             let q_row = t.q0 + t.qy * (fy - t.y[0]);
-            for px in a..=b {
+            // Depth test written as selects, not a branch: where surfaces overlap its
+            // outcome is unpredictable.
+            for ((px, qb), ib) in (a..=b).zip(&mut q_buf[span.clone()]).zip(&mut id_buf[span]) {
                 let q = q_row + t.qx * (px as f32 - t.x[0]);
-                let k = row + px as usize;
-                if q > q_buf[k] || (q == q_buf[k] && t.id < id_buf[k]) {
-                    q_buf[k] = q;
-                    id_buf[k] = t.id;
-                }
+                let nearer = q > *qb || (q == *qb && t.id < *ib);
+                *qb = if nearer { q } else { *qb };
+                *ib = if nearer { t.id } else { *ib };
             }
         }
     }

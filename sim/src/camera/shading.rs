@@ -63,7 +63,9 @@ fn sq(c: [f32; 3]) -> [f32; 3] {
 
 impl Shader<'_> {
     pub fn shade(&self, u: usize, v: usize, id: u32, inv_z: f32) -> Shaded {
-        let d = self.view.ray(u as f32, v as f32);
+        // Through u32: exact (a frame is far narrower than 2^24) and one instruction, where
+        // usize to f32 takes several.
+        let d = self.view.ray(u as u32 as f32, v as u32 as f32);
         let len = dot(&d, &d).sqrt();
         let inv_len = 1.0 / len;
         if id == u32::MAX {

@@ -25,7 +25,9 @@ pub(crate) struct ShadowMap {
     w: [f32; 3],
     origin: [f32; 2],
     width: usize,
-    height: usize,
+    /// The map's width and height in texels, as f32 (converting a usize per lookup costs
+    /// several instructions).
+    size: [f32; 2],
     /// Largest height towards the sun of any caster over each texel, quantised to u16 over
     /// `[w_min, w_min + 65535 * w_step]` (0: none).
     top: Vec<u16>,
@@ -68,7 +70,7 @@ impl ShadowMap {
                 w,
                 origin: [0.0; 2],
                 width: 0,
-                height: 0,
+                size: [0.0; 2],
                 top: Vec::new(),
                 w_min: 0.0,
                 per_step: 1.0,
@@ -123,7 +125,7 @@ impl ShadowMap {
             w,
             origin,
             width,
-            height,
+            size: [width as f32, height as f32],
             top,
             w_min,
             per_step: 1.0 / w_step,
@@ -138,12 +140,13 @@ impl ShadowMap {
             return 1.0;
         }
         // Non-negative here: truncation is the floor.
-        let (x0, y0) = ((x as i32) as f32, (y as i32) as f32);
-        if y0 < 0.0 || x0 + 1.0 >= self.width as f32 || y0 + 1.0 >= self.height as f32 {
+        let (xi, yi) = (x as i32, y as i32);
+        let (x0, y0) = (xi as f32, yi as f32);
+        if y0 < 0.0 || x0 + 1.0 >= self.size[0] || y0 + 1.0 >= self.size[1] {
             return 1.0;
         }
         let (fx, fy) = (x - x0, y - y0);
-        let k = y0 as usize * self.width + x0 as usize;
+        let k = yi as usize * self.width + xi as usize;
         // The receiver's height in the same quantisation.
         let h = (dot(&self.w, p) + BIAS_M - self.w_min) * self.per_step + 1.0;
         let lit = |i: usize| if f32::from(self.top[i]) > h { 0.0 } else { 1.0 };

@@ -52,14 +52,17 @@ impl Mips {
         let (u, v) = (fixed(u), fixed(v));
         // Texels per footprint, as a mip level.
         let lod = log2(self.per_texel / per_m) - lod_bias;
-        let last = self.levels.len() - 1;
+        // Conversions through i32 (exact here): to or from usize each takes several
+        // instructions.
+        let last = (self.levels.len() - 1) as i32;
         let t = if lod.is_nan() || lod <= 0.0 {
             self.bilinear(0, u, v)
         } else if lod >= last as f32 {
-            self.bilinear(last, u, v)
+            self.bilinear(last as usize, u, v)
         } else {
-            let l = lod as usize;
-            let f = ((lod - l as f32) * 256.0) as u32;
+            let l = lod as i32;
+            let f = ((lod - l as f32) * 256.0) as i32 as u32;
+            let l = l as usize;
             let (a, b) = (self.bilinear(l, u, v), self.bilinear(l + 1, u, v));
             // Back to bytes, then weighted as the texels were.
             let byte = |x: u32| (x >> 8) & 0x00ff_00ff;
