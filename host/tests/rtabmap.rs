@@ -5,11 +5,11 @@
 
 mod common;
 
-use common::{ate, json, run};
+use common::{ate, event_positions, json, loop_events, run};
 use nalgebra::{Isometry2, Isometry3, Point2, Vector2};
 use rtabmap::config::{FeatureConfig, ScanOdometryConfig, VisualOdometryConfig};
 use rtabmap::features::{Image, extract};
-use rtabmap::scan_odometry::{ScanOdometry, planar};
+use rtabmap::scan_odometry::{ScanOdometry, Sweep, planar};
 use rtabmap::visual_odometry::{Tracking, VisualOdometry};
 use sim::config::Side;
 use sim::sensors::Message;
@@ -20,9 +20,6 @@ const FRAME_NS: i64 = 33_333_333;
 
 /// Where a rendered frame's optical frame truly was, and its features.
 type Frame = (Isometry3<f64>, rtabmap::features::Features);
-
-/// A pose of the truth and of the odometry at the same scan.
-type Pair = (Isometry3<f64>, Isometry2<f64>);
 
 /// Renders `count` consecutive camera frames of S1's first lane at full speed (default
 /// world: identical plants, growth stage 3, camera noise on), from t = 20 s: each frame's
@@ -123,9 +120,17 @@ fn pnp_recovers_the_relative_pose_of_rendered_frames() {
     assert!(drift < 0.02, "visual odometry drift {drift:.4} m");
 }
 
-/// Runs the wheel + ICP odometry over S0; returns its end-to-end position error, m, with
-/// ICP (`icp` true) or on the wheels alone.
-fn scan_odometry_error_s0(icp: bool) -> f64 {
+/// What the wheel + ICP odometry did over S0: the end point's planar error, m; the RMS of
+/// its height error and of the true height, both relative to the start, m.
+struct ScanOdometryRun {
+    end_error_m: f64,
+    height_error_m: f64,
+    height_m: f64,
+}
+
+/// Runs the wheel + ICP odometry over S0 as the plugin feeds it (IMU, wheels, timed front
+/// scans), with ICP (`icp` true) or on the wheels and IMU alone.
+fn scan_odometry_s0(icp: bool) -> ScanOdometryRun {
     let config = SimConfig::default();
     let sim = Simulation::new(&config, "s0", 0).expect("S0 builds");
     let base_from_scan = config
@@ -145,13 +150,18 @@ fn scan_odometry_error_s0(icp: bool) -> f64 {
         ..SensorSet::default()
     };
     let base_r_imu = config.sensors.imu.mount.base_from_sensor().rotation;
-    let mut ends: Option<(Pair, Pair)> = None;
+    // At every scan: the truth, the planar odometry, and the odometry in 3D.
+    let mut poses: Vec<(Isometry3<f64>, Isometry2<f64>, Isometry3<f64>)> = Vec::new();
     for m in sim.stream(sensors) {
         match m {
             Message::WheelOdometry(w) => {
                 odometry.on_wheels(w.stamp_ns, w.linear_mps, w.angular_rps)
             }
-            Message::Imu(m) => odometry.on_gyro(m.stamp_ns, (base_r_imu * m.gyro_rps).z),
+            Message::Imu(m) => odometry.on_imu(
+                m.stamp_ns,
+                &(base_r_imu * m.gyro_rps),
+                &(base_r_imu * m.accel_mps2),
+            ),
             Message::Scan2d(s) if s.side == sim::sensors::ScanSide::Front => {
                 let points = points_from_ranges(
                     f64::from(s.angle_min_rad),
@@ -160,34 +170,70 @@ fn scan_odometry_error_s0(icp: bool) -> f64 {
                     f64::from(s.range_min_m),
                     f64::from(s.range_max_m),
                 );
-                let Some(step) = odometry.on_scan(s.stamp_ns, &points) else {
+                let sweep = Sweep {
+                    angle_min_rad: f64::from(s.angle_min_rad),
+                    angle_increment_rad: f64::from(s.angle_increment_rad),
+                    time_increment_s: f64::from(s.time_increment_s),
+                };
+                let Some(step) = odometry.on_timed_scan(s.stamp_ns, &points, Some(&sweep)) else {
                     continue;
                 };
-                let now = (sim.trajectory.pose(s.stamp_ns), step.odom_from_base);
-                ends = Some(match ends {
-                    None => (now, now),
-                    Some((first, _)) => (first, now),
-                });
+                let lifted = odometry.lift(&step.odom_from_base);
+                poses.push((sim.trajectory.pose(s.stamp_ns), step.odom_from_base, lifted));
             }
             _ => {}
         }
     }
-    let ((g0, e0), (g1, e1)) = ends.expect("scans were registered");
-    let truth = planar(&(g0.inverse() * g1));
-    let estimate = e0.inverse() * e1;
-    (truth.inverse() * estimate).translation.vector.norm()
+    let (first, last) = (
+        poses.first().expect("scans were registered"),
+        poses.last().expect("scans were registered"),
+    );
+    let truth = planar(&(first.0.inverse() * last.0));
+    let estimate = first.1.inverse() * last.1;
+    let rms = |values: Vec<f64>| {
+        (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt()
+    };
+    let (z_true, z_odometry) = (first.0.translation.z, first.2.translation.z);
+    ScanOdometryRun {
+        end_error_m: (truth.inverse() * estimate).translation.vector.norm(),
+        height_error_m: rms(poses
+            .iter()
+            .map(|(g, _, l)| (l.translation.z - z_odometry) - (g.translation.z - z_true))
+            .collect()),
+        height_m: rms(poses
+            .iter()
+            .map(|(g, _, _)| g.translation.z - z_true)
+            .collect()),
+    }
 }
 
-/// Guards the paper's odometry for RTAB-Map: over S0's 25 m, ICP on the front scan (returns
-/// within 4 m) keeps the wheels' drift small.
+/// Guards the paper's odometry for RTAB-Map: over S0's 25 m, ICP on the front scan keeps
+/// the wheels' drift small; and the IMU's tilt with the wheels gives the height of the
+/// uneven ground, which planar odometry (z = 0) misses entirely.
 #[test]
 fn icp_on_the_front_scan_refines_wheel_odometry() {
-    let (wheels, refined) = (scan_odometry_error_s0(false), scan_odometry_error_s0(true));
-    eprintln!("S0 end-point error: wheels {wheels:.3} m, wheels + ICP {refined:.3} m");
-    assert!(refined < 0.1, "wheels + ICP end-point error {refined:.3} m");
+    let (wheels, refined) = (scan_odometry_s0(false), scan_odometry_s0(true));
+    let (wheels_end, end) = (wheels.end_error_m, refined.end_error_m);
+    eprintln!(
+        "S0 end-point error: wheels {wheels_end:.3} m, wheels + ICP {end:.3} m; height error \
+         RMS {:.3} m against a true height RMS of {:.3} m",
+        refined.height_error_m, refined.height_m
+    );
+    assert!(end < 0.1, "wheels + ICP end-point error {end:.3} m");
     assert!(
-        refined < 0.5 * wheels,
-        "ICP must refine the wheels: {refined:.3} m against {wheels:.3} m"
+        end < 0.5 * wheels_end,
+        "ICP must refine the wheels: {end:.3} m against {wheels_end:.3} m"
+    );
+    assert!(
+        refined.height_m > 0.03,
+        "S0 is uneven: true height RMS {:.3} m",
+        refined.height_m
+    );
+    assert!(
+        refined.height_error_m < 0.5 * refined.height_m,
+        "height error RMS {:.3} m against a true height RMS of {:.3} m",
+        refined.height_error_m,
+        refined.height_m
     );
 }
 
@@ -278,36 +324,6 @@ fn plugin_runs_s0_and_its_grid_lies_on_the_rows() {
     );
 }
 
-/// The ground-truth positions of the two locations an event names (`t_ns=…` twice).
-fn event_positions(folder: &std::path::Path, detail: &str) -> Option<(Vector2<f64>, Vector2<f64>)> {
-    let stamps: Vec<f64> = detail
-        .split("t_ns=")
-        .skip(1)
-        .filter_map(|s| s.split(')').next()?.parse::<i64>().ok())
-        .map(|ns| ns as f64 * 1e-9)
-        .collect();
-    let text = std::fs::read_to_string(folder.join("groundtruth.tum")).expect("groundtruth.tum");
-    let poses: Vec<[f64; 3]> = text
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f64> = l
-                .split_whitespace()
-                .map(|x| x.parse().expect("number"))
-                .collect();
-            [v[0], v[1], v[2]]
-        })
-        .collect();
-    let at = |t: f64| {
-        let k = poses.partition_point(|p| p[0] < t).min(poses.len() - 1);
-        Vector2::new(poses[k][1], poses[k][2])
-    };
-    match stamps.as_slice() {
-        [a, b] => Some((at(*a), at(*b))),
-        _ => None,
-    }
-}
-
 /// Guards loop closure in S1, where the robot comes back along the row it went down: its
 /// camera then looks the other way, so the loops are closed by proximity (ICP of the laser
 /// scans near the graph's estimate). Loaded from its `.so`, the plugin accepts loop closures
@@ -325,17 +341,10 @@ fn true_loops_are_closed_in_s1() {
         "without-loops",
         "[proximity]\nenabled = false\n[loop_closure]\nenabled = false\n",
     );
-    let events = json(&with.join("events.json"));
-    let accepted: Vec<String> = events
-        .as_array()
-        .expect("events are a list")
-        .iter()
-        .filter(|e| e["kind"] == "loop_closure_accepted")
-        .map(|e| e["detail"].as_str().expect("detail").to_owned())
-        .collect();
+    let accepted = loop_events(&with, "loop_closure_accepted");
     assert!(
         accepted.len() >= 5,
-        "few loop closures accepted in S1: {events}"
+        "few loop closures accepted in S1: {accepted:?}"
     );
     for detail in &accepted {
         let (a, b) = event_positions(&with, detail).expect("two stamps in the detail");

@@ -1,8 +1,11 @@
 //! What the end-to-end plugin tests share: running a plugin through the `vinebench` binary
-//! and reading what it wrote.
+//! and reading what it wrote. (Each test crate uses a part of it.)
+#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use nalgebra::Vector2;
 
 /// Where cargo put the test's libraries, the plugins' `.so` among them.
 pub fn deps_dir() -> PathBuf {
@@ -63,4 +66,45 @@ pub fn ate(folder: &Path, file: &str) -> f64 {
     serde_json::from_slice::<serde_json::Value>(&o.stdout).expect("json")["rmse"]
         .as_f64()
         .expect("rmse")
+}
+
+/// The details of a run's events of one kind (`loop_closure_accepted`, …), in order.
+pub fn loop_events(folder: &Path, kind: &str) -> Vec<String> {
+    json(&folder.join("events.json"))
+        .as_array()
+        .expect("events are a list")
+        .iter()
+        .filter(|e| e["kind"] == kind)
+        .map(|e| e["detail"].as_str().expect("detail").to_owned())
+        .collect()
+}
+
+/// The ground-truth positions of the two locations an event names (`t_ns=…` twice).
+pub fn event_positions(folder: &Path, detail: &str) -> Option<(Vector2<f64>, Vector2<f64>)> {
+    let stamps: Vec<f64> = detail
+        .split("t_ns=")
+        .skip(1)
+        .filter_map(|s| s.split(')').next()?.parse::<i64>().ok())
+        .map(|ns| ns as f64 * 1e-9)
+        .collect();
+    let text = std::fs::read_to_string(folder.join("groundtruth.tum")).expect("groundtruth.tum");
+    let poses: Vec<[f64; 3]> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .map(|x| x.parse().expect("number"))
+                .collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    let at = |t: f64| {
+        let k = poses.partition_point(|p| p[0] < t).min(poses.len() - 1);
+        Vector2::new(poses[k][1], poses[k][2])
+    };
+    match stamps.as_slice() {
+        [a, b] => Some((at(*a), at(*b))),
+        _ => None,
+    }
 }

@@ -23,6 +23,7 @@
 //! rejected and every loss of visual tracking. Parameters: [`config::Config`], RTAB-Map's
 //! defaults where they apply (`configs/rtabmap.toml`).
 
+pub mod attitude;
 pub mod bayes;
 pub mod config;
 pub mod features;

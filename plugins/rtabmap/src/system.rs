@@ -1,6 +1,6 @@
 //! The plugin: odometry between messages, a location per second, loop closure and the graph.
 
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Isometry2, Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
 use plugin_api::{
     Event, EventKind, Imu, LaserScan, OccupancyGrid, PluginError, Pose, Requirements, RgbdFrame,
     Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
@@ -14,10 +14,13 @@ use crate::graph::{LinkKind, LoopOutcome, PoseGraph, Sigmas, Strain};
 use crate::memory::{Hypothesis, Location, Memory};
 use crate::pnp::{self, PnpConfig};
 use crate::proximity;
-use crate::scan_odometry::{ScanOdometry, planar, spatial};
+use crate::scan_odometry::{ScanOdometry, Sweep, narrow_returns, planar, spatial};
 use crate::visual_odometry::{Tracking, VisualOdometry};
 
+/// The odometry the configuration chose. One per plugin instance, made once and never
+/// moved: the variants' sizes do not matter.
 #[derive(Debug)]
+#[allow(clippy::large_enum_variant)]
 enum Odometry {
     Visual(Option<VisualOdometry>),
     WheelIcp(ScanOdometry),
@@ -212,7 +215,8 @@ impl Rtabmap {
         let camera_old_from_camera_new = result.camera_from_object.inverse();
         let mut old_from_new =
             self.base_from_camera * camera_old_from_camera_new * self.base_from_camera.inverse();
-        if self.cfg.odometry == OdometrySource::WheelIcp {
+        // Planar odometry (no attitude) keeps every pose level: so must the link.
+        if self.cfg.odometry == OdometrySource::WheelIcp && self.cfg.icp.attitude_gain == 0.0 {
             old_from_new = spatial(&planar(&old_from_new));
         }
         let sigmas = self.loop_sigmas(&object, &pixels, &result);
@@ -344,18 +348,24 @@ impl Rtabmap {
                     result.correspondence_ratio * 100.0,
                     result.rmse_m
                 );
-                self.add_loop_link(
-                    old.id,
-                    new,
-                    spatial(&result.target_from_source),
-                    sigmas,
-                    &what,
-                )
+                // ICP measures x, y and yaw; height, roll and pitch between the two stay
+                // as the graph has them.
+                let pose = |id: u64| {
+                    self.graph
+                        .pose(id)
+                        .unwrap_or(self.memory.location(id).odom_from_base)
+                };
+                let link = with_planar(
+                    &(pose(old.id).inverse() * pose(new)),
+                    &result.target_from_source,
+                );
+                self.add_loop_link(old.id, new, link, sigmas, &what)
             }
         }
     }
 
-    /// A scan's points (sensor frame, within the ICP range) in the base frame, planar.
+    /// A scan's points (sensor frame, in scan order) that the odometry would register (on
+    /// narrow objects, within the ICP range), in the base frame, planar.
     fn scan_in_base(&self, scan: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
         let base_from_scan = planar(&self.base_from_scan);
         let max = if self.cfg.icp.max_range_m > 0.0 {
@@ -364,8 +374,9 @@ impl Rtabmap {
             f64::INFINITY
         };
         scan.iter()
-            .filter(|p| p.norm() <= max)
-            .map(|p| (base_from_scan * nalgebra::Point2::from(*p)).coords)
+            .zip(narrow_returns(scan, &self.cfg.icp))
+            .filter(|(p, narrow)| *narrow && p.norm() <= max)
+            .map(|(p, _)| (base_from_scan * nalgebra::Point2::from(*p)).coords)
             .collect()
     }
 
@@ -483,8 +494,11 @@ impl SlamSystem for Rtabmap {
 
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
         if let Odometry::WheelIcp(scan_odometry) = &mut self.odometry {
-            let yaw_rate = (self.base_r_imu * Vector3::from(imu.gyro_rps)).z;
-            scan_odometry.on_gyro(imu.stamp_ns, yaw_rate);
+            scan_odometry.on_imu(
+                imu.stamp_ns,
+                &(self.base_r_imu * Vector3::from(imu.gyro_rps)),
+                &(self.base_r_imu * Vector3::from(imu.accel_mps2)),
+            );
         }
         Ok(None)
     }
@@ -507,12 +521,22 @@ impl SlamSystem for Rtabmap {
             f64::from(scan.range_min_m),
             f64::from(scan.range_max_m),
         );
-        let step = match &mut self.odometry {
-            Odometry::WheelIcp(o) => o.on_scan(scan.stamp_ns, &points),
+        let pose = match &mut self.odometry {
+            Odometry::WheelIcp(o) => o
+                .on_timed_scan(
+                    scan.stamp_ns,
+                    &points,
+                    self.cfg.icp.deskew.then_some(&Sweep {
+                        angle_min_rad: f64::from(scan.angle_min_rad),
+                        angle_increment_rad: f64::from(scan.angle_increment_rad),
+                        time_increment_s: f64::from(scan.time_increment_s),
+                    }),
+                )
+                .map(|step| o.lift(&step.odom_from_base)),
             Odometry::Visual(_) => None,
         };
         self.latest_scan = Some((scan.stamp_ns, points));
-        Ok(step.map(|s| self.record(scan.stamp_ns, spatial(&s.odom_from_base))))
+        Ok(pose.map(|p| self.record(scan.stamp_ns, p)))
     }
 
     fn on_rgbd(&mut self, frame: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
@@ -568,7 +592,7 @@ impl SlamSystem for Rtabmap {
                 }
             }
             Odometry::WheelIcp(o) => match o.pose_at(stamp) {
-                Some(p) => (spatial(&p), None, false),
+                Some(p) => (o.lift(&p), None, false),
                 None => return Ok(None),
             },
         };
@@ -634,4 +658,14 @@ impl SlamSystem for Rtabmap {
             events: std::mem::take(&mut self.events),
         })
     }
+}
+
+/// `pose` with its x, y and yaw replaced by `planar`'s; its height, roll and pitch kept.
+fn with_planar(pose: &Isometry3<f64>, planar: &Isometry2<f64>) -> Isometry3<f64> {
+    let (roll, pitch, _) = pose.rotation.euler_angles();
+    let t = planar.translation.vector;
+    Isometry3::from_parts(
+        Translation3::new(t.x, t.y, pose.translation.vector.z),
+        UnitQuaternion::from_euler_angles(roll, pitch, planar.rotation.angle()),
+    )
 }
