@@ -22,7 +22,7 @@ use super::{
     solve::{self, Slot},
 };
 
-/// The factor-graph backend on factrs; see the [module documentation](self).
+/// The factor-graph backend on factrs; how it works is in this file's module documentation.
 #[derive(Debug, Clone)]
 pub struct FactrsBackend {
     window: usize,
