@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{ate, json, run};
+use common::{ate, json, loop_events, run};
 
 use lio_sam::config::{FeatureConfig, MappingConfig};
 use lio_sam::deskew::{SweepLayout, rings};
@@ -252,14 +252,12 @@ fn a_loop_is_closed_in_s1_and_the_error_drops() {
         "[loop_closure]\nenabled = false\n",
     );
 
-    let events = json(&with.join("events.json"));
-    let accepted = events
-        .as_array()
-        .expect("events are a list")
-        .iter()
-        .filter(|e| e["kind"] == "loop_closure_accepted")
-        .count();
-    assert!(accepted >= 1, "no loop closure accepted in S1: {events}");
+    let accepted = loop_events(&with, "loop_closure_accepted");
+    assert!(
+        !accepted.is_empty(),
+        "no loop closure accepted in S1: {}",
+        json(&with.join("events.json"))
+    );
     let none = json(&without.join("events.json"));
     assert_eq!(
         none.as_array().map(Vec::len),

@@ -49,10 +49,16 @@ pub fn planar(pose: &Isometry3<f64>) -> Isometry2<f64> {
 
 /// A planar pose as a 3D one (z, roll and pitch 0).
 pub fn spatial(pose: &Isometry2<f64>) -> Isometry3<f64> {
+    raised(pose, 0.0, 0.0, 0.0)
+}
+
+/// A planar pose (x, y, yaw) raised to 3D at height `z_m` with `roll` and `pitch` (ZYX
+/// angles, rad).
+pub fn raised(pose: &Isometry2<f64>, z_m: f64, roll: f64, pitch: f64) -> Isometry3<f64> {
     let t = pose.translation.vector;
     Isometry3::from_parts(
-        Translation3::new(t.x, t.y, 0.0),
-        UnitQuaternion::from_euler_angles(0.0, 0.0, pose.rotation.angle()),
+        Translation3::new(t.x, t.y, z_m),
+        UnitQuaternion::from_euler_angles(roll, pitch, pose.rotation.angle()),
     )
 }
 
@@ -134,12 +140,8 @@ impl ScanOdometry {
     /// The base's pose in 3D at the planar `odom_from_base`: with the IMU's tilt, the roll,
     /// pitch and height it has had the wheels climb; otherwise level at z = 0.
     pub fn lift(&self, odom_from_base: &Isometry2<f64>) -> Isometry3<f64> {
-        let t = odom_from_base.translation.vector;
         let (roll, pitch) = self.tilt.roll_pitch().unwrap_or_default();
-        Isometry3::from_parts(
-            Translation3::new(t.x, t.y, self.height_m),
-            UnitQuaternion::from_euler_angles(roll, pitch, odom_from_base.rotation.angle()),
-        )
+        raised(odom_from_base, self.height_m, roll, pitch)
     }
 
     /// The gyro's yaw rate about the base's z axis, rad/s.
@@ -218,14 +220,9 @@ impl ScanOdometry {
     }
 
     /// Registers a scan (points in the scan's frame, in scan order, from
-    /// [`slam_common::scan2d::points_from_ranges`]) as if all its returns were taken at its
-    /// stamp. None until the wheels have reported.
-    pub fn on_scan(&mut self, stamp_ns: i64, points: &[Vector2<f64>]) -> Option<ScanStep> {
-        self.on_timed_scan(stamp_ns, points, None)
-    }
-
-    /// As [`ScanOdometry::on_scan`]; with `sweep`, every return is first moved to where the
-    /// scanner was at the stamp (motion compensation, as LOAM does with its IMU: Zhang and
+    /// [`slam_common::scan2d::points_from_ranges`]); None until the wheels have reported.
+    /// Without `sweep`, all its returns count as taken at its stamp; with it, every return is
+    /// first moved to where the scanner was at the stamp (motion compensation, as LOAM does with its IMU: Zhang and
     /// Singh, "LOAM: Lidar odometry and mapping in real-time", RSS 2014). The sweep of the
     /// default scanner lasts 18 ms: turning at 20°/s in a headland, it bends the scan by a
     /// third of a degree, by a different angle for objects at different bearings.

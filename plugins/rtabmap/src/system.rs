@@ -1,6 +1,6 @@
 //! The plugin: odometry between messages, a location per second, loop closure and the graph.
 
-use nalgebra::{Isometry2, Isometry3, Point3, Translation3, UnitQuaternion, Vector2, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use plugin_api::{
     Event, EventKind, Imu, LaserScan, OccupancyGrid, PluginError, Pose, Requirements, RgbdFrame,
     Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
@@ -14,7 +14,7 @@ use crate::graph::{LinkKind, LoopOutcome, PoseGraph, Sigmas, Strain};
 use crate::memory::{Hypothesis, Location, Memory};
 use crate::pnp::{self, PnpConfig};
 use crate::proximity;
-use crate::scan_odometry::{ScanOdometry, Sweep, narrow_returns, planar, spatial};
+use crate::scan_odometry::{ScanOdometry, Sweep, narrow_returns, planar, raised, spatial};
 use crate::visual_odometry::{Tracking, VisualOdometry};
 
 /// The odometry the configuration chose. One per plugin instance, made once and never
@@ -355,9 +355,13 @@ impl Rtabmap {
                         .pose(id)
                         .unwrap_or(self.memory.location(id).odom_from_base)
                 };
-                let link = with_planar(
-                    &(pose(old.id).inverse() * pose(new)),
+                let estimate = pose(old.id).inverse() * pose(new);
+                let (roll, pitch, _) = estimate.rotation.euler_angles();
+                let link = raised(
                     &result.target_from_source,
+                    estimate.translation.z,
+                    roll,
+                    pitch,
                 );
                 self.add_loop_link(old.id, new, link, sigmas, &what)
             }
@@ -658,14 +662,4 @@ impl SlamSystem for Rtabmap {
             events: std::mem::take(&mut self.events),
         })
     }
-}
-
-/// `pose` with its x, y and yaw replaced by `planar`'s; its height, roll and pitch kept.
-fn with_planar(pose: &Isometry3<f64>, planar: &Isometry2<f64>) -> Isometry3<f64> {
-    let (roll, pitch, _) = pose.rotation.euler_angles();
-    let t = planar.translation.vector;
-    Isometry3::from_parts(
-        Translation3::new(t.x, t.y, pose.translation.vector.z),
-        UnitQuaternion::from_euler_angles(roll, pitch, planar.rotation.angle()),
-    )
 }
