@@ -7,11 +7,17 @@
 //! - [`kdtree`], [`voxel`]: nearest neighbours and voxel-grid downsampling for maps;
 //! - [`geometry`], [`lsq`], [`icp`]: lines and planes from neighbours, Gauss–Newton on SE(3)
 //!   with degeneracy handling, point-to-plane ICP;
+//! - [`ba`]: ORB-SLAM2's bundle adjustment: sparse Schur-complement Levenberg–Marquardt over
+//!   keyframe poses and map points with monocular and stereo reprojection residuals, and the
+//!   motion-only pose optimisation with χ² outlier rounds;
 //! - [`bow`]: an incremental bag-of-words vocabulary over binary descriptors with tf-idf
 //!   scores and RTAB-Map's likelihood, for appearance-based loop-closure detection;
+//! - [`vocabulary`]: a trained hierarchical vocabulary of binary words (DBoW2, as ORB-SLAM2
+//!   uses it) with tf-idf bag-of-words vectors, the direct index and the L1 score;
 //! - [`scan2d`], [`occupancy`]: planar laser scans, 3-DoF point-to-line ICP with degeneracy
 //!   handling, and a log-odds 2D occupancy grid in the ROS map_server convention.
 
+pub mod ba;
 pub mod backend;
 pub mod bow;
 pub mod geometry;
@@ -21,4 +27,5 @@ pub mod kdtree;
 pub mod lsq;
 pub mod occupancy;
 pub mod scan2d;
+pub mod vocabulary;
 pub mod voxel;
