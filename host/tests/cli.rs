@@ -123,11 +123,62 @@ fn misspelt_config_key_fails_cleanly_without_output() {
     assert!(!out.exists(), "no output folder after a failure");
 }
 
+/// s4 (ours: lane 3 twice eastwards, lane 4 between) is a scenario like the paper's:
+/// simulated whole from the embedded defaults and recorded by name.
+#[test]
+fn s4_is_simulated_and_recorded_by_name() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("s4");
+    let o = vinebench(&[
+        "simulate",
+        "--scenario",
+        "s4",
+        "--sensors",
+        "gt",
+        "--out",
+        out.to_str().expect("utf-8 path"),
+    ]);
+    assert!(o.status.success(), "simulate s4 failed: {}", stderr(&o));
+    assert!(
+        stdout(&o).contains("scenario s4: 84.3 m in "),
+        "s4 drives 84.3 m: {}",
+        stdout(&o)
+    );
+    let gt = lines(&out.join("groundtruth.tum"));
+    let last: f64 = gt
+        .last()
+        .and_then(|l| l.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .expect("a stamp");
+    assert!(
+        (160.0..200.0).contains(&last),
+        "84 m at up to 0.5 m/s with two U-turns: {last} s"
+    );
+    let mcap = tmp.path().join("s4.mcap");
+    let o = vinebench(&[
+        "record",
+        "--scenario",
+        "s4",
+        "--sensors",
+        "gt,odom",
+        "--max-time",
+        "2",
+        "-o",
+        mcap.to_str().expect("utf-8 path"),
+    ]);
+    assert!(o.status.success(), "record s4 failed: {}", stderr(&o));
+    let bytes = std::fs::read(&mcap).expect("recording written");
+    assert_eq!(&bytes[..8], b"\x89MCAP0\r\n", "an MCAP file");
+}
+
 #[test]
 fn unknown_scenario_and_sensor_are_named() {
     let o = vinebench(&["simulate", "--scenario", "s9"]);
     assert!(
-        !o.status.success() && stderr(&o).contains("s9") && stderr(&o).contains("s3"),
+        !o.status.success()
+            && stderr(&o).contains("s9")
+            && stderr(&o).contains("s3")
+            && stderr(&o).contains("s4"),
         "{}",
         stderr(&o)
     );

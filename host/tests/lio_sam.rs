@@ -238,8 +238,9 @@ fn deskewing_improves_registration_on_a_turning_scan() {
 }
 
 /// Guards loop closure end to end: in S1 the robot comes back along the row it went down;
-/// the plugin, loaded from its `.so` by the host, must accept loop closures there, and its
-/// optimised trajectory must beat the same plugin's with loop closure off.
+/// the plugin, loaded from its `.so` by the host, must accept loop closures there, each
+/// joining one place as the host judges against ground truth, and its optimised
+/// trajectory must beat the same plugin's with loop closure off.
 #[test]
 fn a_loop_is_closed_in_s1_and_the_error_drops() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -258,6 +259,19 @@ fn a_loop_is_closed_in_s1_and_the_error_drops() {
         "no loop closure accepted in S1: {}",
         json(&with.join("events.json"))
     );
+    for event in &accepted {
+        assert!(
+            event.stamps_ns.is_some() && event.true_loop == Some(true),
+            "every accepted loop carries its stamps and joins one place in ground truth: {event:?}"
+        );
+    }
+    let loops = &json(&with.join("metrics.json"))["loops"];
+    assert_eq!(
+        loops["accepted"].as_u64(),
+        Some(accepted.len() as u64),
+        "{loops}"
+    );
+    assert_eq!(loops["accepted_false"].as_u64(), Some(0), "{loops}");
     let none = json(&without.join("events.json"));
     assert_eq!(
         none.as_array().map(Vec::len),

@@ -346,14 +346,24 @@ fn true_loops_are_closed_in_s1() {
         accepted.len() >= 5,
         "few loop closures accepted in S1: {accepted:?}"
     );
-    for detail in &accepted {
-        let (a, b) = event_positions(&with, detail).expect("two stamps in the detail");
+    for event in &accepted {
+        let (a, b) = event_positions(&with, event).expect("the loop's two stamps");
         assert!(
-            (a - b).norm() < 1.0,
-            "a false loop was accepted ({:.2} m apart): {detail}",
-            (a - b).norm()
+            (a - b).norm() < 1.0 && event.true_loop == Some(true),
+            "a false loop was accepted ({:.2} m apart, judged {:?}): {}",
+            (a - b).norm(),
+            event.true_loop,
+            event.detail
         );
     }
+    let loops = &json(&with.join("metrics.json"))["loops"];
+    assert_eq!(
+        loops["accepted"].as_u64(),
+        Some(accepted.len() as u64),
+        "{loops}"
+    );
+    assert_eq!(loops["accepted_false"].as_u64(), Some(0), "{loops}");
+    assert!(loops.get("unjudged").is_none(), "{loops}");
     let (final_with, final_without) = (ate(&with, "estimate.tum"), ate(&without, "estimate.tum"));
     eprintln!(
         "S1: {} loops accepted; ATE {final_with:.3} m with, {final_without:.3} m without",

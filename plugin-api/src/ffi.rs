@@ -281,3 +281,57 @@ pub fn module<T: SlamSystem>() -> PluginModuleRef {
     }
     .leak_into_prefix()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::system::EventKind;
+
+    /// Events cross the ABI as TOML: the loop stamps survive the trip, and a plugin that
+    /// sends none (built before they existed) still loads.
+    #[test]
+    fn loop_stamps_cross_the_abi_and_may_be_absent() {
+        let events = vec![
+            Event::loop_closure(
+                2_000_000_000,
+                EventKind::LoopClosureAccepted,
+                [2_000_000_000, 500_000_000],
+                "keyframe 20 to 5",
+            ),
+            Event::new(2_100_000_000, EventKind::TrackingLost, "no features"),
+        ];
+        let output = SlamOutput {
+            events: events.clone(),
+            ..SlamOutput::default()
+        };
+        let ffi = output_to_ffi(output);
+        assert!(
+            ffi.events_toml
+                .as_str()
+                .contains("loop_stamps_ns = [2000000000, 500000000]"),
+            "{}",
+            ffi.events_toml
+        );
+        let back = output_from_ffi(ffi).expect("events parse");
+        assert_eq!(back.events, events);
+        assert_eq!(
+            back.events[0].loop_stamps_ns,
+            Some([2_000_000_000, 500_000_000])
+        );
+        assert_eq!(back.events[1].loop_stamps_ns, None);
+
+        let old = OutputFfi {
+            trajectory: RVec::new(),
+            map: None.into(),
+            grid: None.into(),
+            events_toml:
+                "[[events]]\nstamp_ns = 7\nkind = \"loop_closure_accepted\"\ndetail = \"old\"\n"
+                    .into(),
+        };
+        let back = output_from_ffi(old).expect("an old plugin's events parse");
+        assert_eq!(
+            back.events,
+            [Event::new(7, EventKind::LoopClosureAccepted, "old")]
+        );
+    }
+}

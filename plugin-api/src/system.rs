@@ -42,7 +42,7 @@ impl Requirements {
     }
 }
 
-/// Something that happened during a run, for the report.
+/// What kind of thing an [`Event`] is.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum EventKind {
@@ -52,12 +52,57 @@ pub enum EventKind {
     TrackingRecovered,
 }
 
+impl EventKind {
+    /// Whether this is a loop closure, accepted or rejected.
+    pub fn is_loop_closure(&self) -> bool {
+        matches!(self, Self::LoopClosureAccepted | Self::LoopClosureRejected)
+    }
+}
+
+/// Something that happened during a run, for the report.
+///
+/// Build one with [`Event::new`] or, for a loop closure, [`Event::loop_closure`], which
+/// also records the two stamps it joins: the host then judges every accepted loop against
+/// ground truth (true when the two base poses are within 1 m of each other).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Event {
     pub stamp_ns: i64,
     pub kind: EventKind,
     /// Free text, e.g. which keyframes a loop closure joined and why it was rejected.
     pub detail: String,
+    /// A loop closure's two base-pose stamps, `[current, matched]`: the newer keyframe or
+    /// location and the older one it was joined to. `None` for other events, and from
+    /// plugins built before the field existed (their loops are counted, not judged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loop_stamps_ns: Option<[i64; 2]>,
+}
+
+impl Event {
+    /// An event without loop stamps.
+    pub fn new(stamp_ns: i64, kind: EventKind, detail: impl Into<String>) -> Self {
+        Self {
+            stamp_ns,
+            kind,
+            detail: detail.into(),
+            loop_stamps_ns: None,
+        }
+    }
+
+    /// A loop closure of `kind` ([`EventKind::LoopClosureAccepted`] or
+    /// [`EventKind::LoopClosureRejected`]) at `stamp_ns`, joining the base pose at
+    /// `current_ns` to the older one at `matched_ns`.
+    pub fn loop_closure(
+        stamp_ns: i64,
+        kind: EventKind,
+        [current_ns, matched_ns]: [i64; 2],
+        detail: impl Into<String>,
+    ) -> Self {
+        debug_assert!(kind.is_loop_closure(), "{kind:?} is not a loop closure");
+        Self {
+            loop_stamps_ns: Some([current_ns, matched_ns]),
+            ..Self::new(stamp_ns, kind, detail)
+        }
+    }
 }
 
 /// A 2D occupancy grid in the ROS map_server convention: cells row-major from the origin

@@ -22,7 +22,8 @@ pub struct SimConfig {
     pub terrain: TerrainConfig,
     pub robot: RobotConfig,
     pub sensors: SensorsConfig,
-    /// Named routes; `s0`..`s3` reproduce the paper's scenarios.
+    /// Named routes; `s0`..`s3` reproduce the paper's scenarios, `s4` is ours (the same
+    /// lane twice in the same direction).
     pub scenarios: BTreeMap<String, RouteSpec>,
 }
 
@@ -35,20 +36,20 @@ impl Default for SimConfig {
             terrain: TerrainConfig::default(),
             robot: RobotConfig::default(),
             sensors: SensorsConfig::default(),
-            scenarios: RouteSpec::paper_scenarios(),
+            scenarios: RouteSpec::builtin_scenarios(),
         }
     }
 }
 
 impl SimConfig {
     /// Parses a TOML document; keys it leaves out keep their defaults. Scenarios given in
-    /// the document are added to (or replace) the paper's `s0`..`s3`.
+    /// the document are added to (or replace) the built-in `s0`..`s4`.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
         let mut cfg: SimConfig = toml::from_str(text).map_err(|e| SimError::Config {
             origin: origin.to_owned(),
             message: e.message().to_owned() + &span_hint(text, e.span()),
         })?;
-        for (name, spec) in RouteSpec::paper_scenarios() {
+        for (name, spec) in RouteSpec::builtin_scenarios() {
             cfg.scenarios.entry(name).or_insert(spec);
         }
         cfg.validate().map_err(|message| SimError::Config {
@@ -602,11 +603,31 @@ pub enum RouteSpec {
         lanes: usize,
         overshoot_m: f64,
     },
+    /// The given lanes in order, joined by U-turns in the headlands: the first driven along
+    /// +x, the next the other way, and so on; two in a row must differ. `[3, 4, 3]` drives
+    /// lane 3 twice in the same direction.
+    LaneSequence { lanes: Vec<usize>, overshoot_m: f64 },
     /// The user's own path: at least two (x, y) points in the world frame, driven in order.
     Waypoints { points: Vec<[f64; 2]> },
 }
 
 impl RouteSpec {
+    /// The built-in scenarios: the paper's S0-S3 and our s4, lane 3 eastwards, a U-turn
+    /// into lane 4 westwards, a U-turn back into lane 3 eastwards (S2 and back into its
+    /// first lane; 84.2 m in the default world), so places are seen again from the same
+    /// side.
+    pub fn builtin_scenarios() -> BTreeMap<String, RouteSpec> {
+        let mut scenarios = Self::paper_scenarios();
+        scenarios.insert(
+            "s4".to_owned(),
+            RouteSpec::LaneSequence {
+                lanes: vec![3, 4, 3],
+                overshoot_m: 3.47,
+            },
+        );
+        scenarios
+    }
+
     /// The paper's scenarios S0-S3 (lengths 25, 48.6, 54.6, 101.2 m in the default world).
     pub fn paper_scenarios() -> BTreeMap<String, RouteSpec> {
         BTreeMap::from([
@@ -655,6 +676,18 @@ impl RouteSpec {
             } => {
                 if *lanes == 0 {
                     return Err("lanes = 0: need at least one lane".into());
+                }
+                non_negative("overshoot_m", *overshoot_m)
+            }
+            RouteSpec::LaneSequence { lanes, overshoot_m } => {
+                if lanes.is_empty() {
+                    return Err("lanes = []: need at least one lane".into());
+                }
+                if let Some(pair) = lanes.windows(2).find(|p| p[0] == p[1]) {
+                    return Err(format!(
+                        "lanes: lane {} twice in a row; a U-turn needs another lane",
+                        pair[0]
+                    ));
                 }
                 non_negative("overshoot_m", *overshoot_m)
             }
@@ -714,9 +747,25 @@ mod tests {
         let cfg = SimConfig::from_toml_str(text, "w.toml").expect("parses");
         assert_eq!(cfg.vineyard, VineyardConfig::default());
         assert!(
-            cfg.scenarios.contains_key("mine") && cfg.scenarios.contains_key("s3"),
+            cfg.scenarios.contains_key("mine")
+                && cfg.scenarios.contains_key("s3")
+                && cfg.scenarios.contains_key("s4"),
             "{:?}",
             cfg.scenarios.keys()
         );
+    }
+
+    #[test]
+    fn lane_sequence_needs_lanes_and_a_change_of_lane() {
+        for (lanes, expected) in [
+            ("[]", "scenarios.mine: lanes = []"),
+            ("[3, 3]", "scenarios.mine: lanes: lane 3 twice in a row"),
+        ] {
+            let text = format!(
+                "[scenarios.mine]\nkind = \"lane_sequence\"\nlanes = {lanes}\novershoot_m = 1.0\n"
+            );
+            let e = SimConfig::from_toml_str(&text, "w.toml").expect_err(lanes);
+            assert!(e.to_string().contains(expected), "{e}");
+        }
     }
 }

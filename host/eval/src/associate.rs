@@ -232,7 +232,7 @@ pub fn associate_by_index(
 /// The pose of `trajectory` (at least two poses) at time `t`: linear interpolation of the
 /// position and slerp of the orientation between the bracketing poses, clamped to the
 /// first and last pose outside the time span.
-fn interpolate(trajectory: &Trajectory, t: f64) -> Isometry3<f64> {
+pub(crate) fn interpolate(trajectory: &Trajectory, t: f64) -> Isometry3<f64> {
     let n = trajectory.len();
     let next = trajectory
         .stamps

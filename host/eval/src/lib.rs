@@ -1,6 +1,7 @@
 //! Trajectory evaluation as evo defines it: TUM/KITTI I/O, association by timestamp,
 //! alignment (origin, SE(3)/Sim(3) Umeyama, 4-DoF), APE/RPE with evo's pose relations
-//! and statistics, KITTI-style drift, and top-view plots.
+//! and statistics, KITTI-style drift, loop closures judged against ground truth, and
+//! top-view plots.
 //!
 //! Implemented from the definitions, not from evo's (GPL) code:
 //! - Sturm et al., "A Benchmark for the Evaluation of RGB-D SLAM Systems", IROS 2012
@@ -31,6 +32,7 @@ mod associate;
 mod drift;
 mod error;
 mod io;
+mod loops;
 pub mod plot;
 mod relation;
 mod rpe;
@@ -47,6 +49,7 @@ pub use error::{EvalError, Malformed};
 pub use io::kitti::{parse_kitti, read_kitti, write_kitti};
 pub use io::tum::{parse_tum, read_tum, write_tum};
 pub use io::{Format, read_trajectory};
+pub use loops::{LoopCounts, LoopCriteria, LoopJudgement, judge_loop};
 pub use relation::PoseRelation;
 pub use rpe::{DeltaUnit, RpeOptions, RpeResult, evaluate_rpe, rpe_errors, rpe_pairs};
 pub use stats::Statistics;

@@ -1,6 +1,6 @@
 //! The table as CSV: a header `statistic,<scenario>/<plugin>,…`, one row per statistic
-//! (3 decimals, as the Markdown), `RTF` (1 decimal) and a last `status` row (`ok` or
-//! `failed: <reason>`). Fields are quoted as RFC 4180 says; lines end with `\n`.
+//! (3 decimals, as the Markdown), `RTF` (1 decimal), `loops` and `false loops` (counts)
+//! and a last `status` row (`ok` or `failed: <reason>`). Fields are quoted as RFC 4180 says; lines end with `\n`.
 
 use super::table::Table;
 

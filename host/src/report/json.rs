@@ -1,10 +1,15 @@
 //! `table.json`, shaped as DESIGN.md fixes it:
 //! `{"<scenario>": {"<plugin>": {"status": "ok" | "failed: <reason>", "rmse": …,
-//! "mean": …, "median": …, "max": …, "min": …, "std": …, "realtime_factor": …}}}`.
+//! "mean": …, "median": …, "max": …, "min": …, "std": …, "realtime_factor": …,
+//! "loops_accepted": n, "loops_false": n}}}`.
 //!
 //! Scenarios and plugins appear in the table's column order. An ok run has every key,
-//! with full f64 precision and `null` for a value that is missing or not finite; a
-//! failed run has `status` only. A (scenario, plugin) pair without a run is absent.
+//! with full f64 precision and `null` for a value that is missing or not finite;
+//! `loops_accepted` counts the accepted loop closures, `loops_false` those of them that
+//! ground truth shows false (joining poses more than 1 m apart), and
+//! `loops_unjudged`, present only when not zero, those that could not be judged (no
+//! stamps). A failed run has `status` only. A (scenario, plugin) pair without a run is
+//! absent.
 
 use serde::Serialize;
 use serde::ser::SerializeMap as _;
@@ -24,6 +29,10 @@ enum Entry {
         min: Option<f64>,
         std: Option<f64>,
         realtime_factor: Option<f64>,
+        loops_accepted: Option<usize>,
+        loops_false: Option<usize>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        loops_unjudged: Option<usize>,
     },
     Failed {
         status: String,
@@ -48,6 +57,9 @@ impl Entry {
             min: stat(|s| s.min),
             std: stat(|s| s.std),
             realtime_factor: column.run.realtime_factor.filter(|v| v.is_finite()),
+            loops_accepted: column.run.loops.map(|l| l.accepted),
+            loops_false: column.run.loops.map(|l| l.accepted_false),
+            loops_unjudged: column.run.loops.map(|l| l.unjudged).filter(|&n| n > 0),
         }
     }
 }

@@ -9,7 +9,9 @@ use std::fmt::Write as _;
 use super::table::Table;
 
 const CAPTION: &str = "APE translation after alignment in metres; \
-    RTF: real-time factor (simulated seconds per wall second).";
+    RTF: real-time factor (simulated seconds per wall second); \
+    loops: loop closures accepted; false loops: of those, the ones joining poses more \
+    than 1 m apart in ground truth.";
 
 /// `text` safe inside a table cell: `|` escaped.
 fn cell(text: &str) -> String {
@@ -69,6 +71,14 @@ pub(super) fn render(table: &Table) -> String {
         }
     }
     let _ = write!(out, "\n{CAPTION}\n");
+
+    let unjudged: Vec<_> = table.unjudged_loops().collect();
+    if !unjudged.is_empty() {
+        out.push_str("\nAccepted loops without stamps, not judged:\n\n");
+        for (scenario, plugin, n) in unjudged {
+            let _ = writeln!(out, "- {scenario} / {plugin}: {n}");
+        }
+    }
 
     let failures: Vec<_> = table.failures().collect();
     if !failures.is_empty() {

@@ -48,6 +48,8 @@ pub struct RunRecord {
     pub ape: Option<eval::Statistics>,
     /// Simulated seconds per wall second of the run (sim + plugin); `None` when failed.
     pub realtime_factor: Option<f64>,
+    /// The run's loop closures as judged against ground truth; `None` when failed.
+    pub loops: Option<eval::LoopCounts>,
     /// Top view (x, y) of the aligned final estimate, for the overlay plot; empty when
     /// failed.
     pub estimate_xy: Vec<(f64, f64)>,
@@ -67,15 +69,19 @@ pub struct ScenarioTruth {
 ///
 /// Files:
 /// - `table.md`, `table.csv`, `table.tex`: the paper's Table 2 layout. Rows `max`, `mean`,
-///   `median`, `rmse`, `std` (metres, 3 decimals) and `RTF` (real-time factor,
-///   1 decimal); one column per (scenario, plugin) run, all systems of the first
+///   `median`, `rmse`, `std` (metres, 3 decimals), `RTF` (real-time factor,
+///   1 decimal), `loops` (loop closures accepted) and `false loops` (of those, the ones
+///   ground truth shows false: joining poses more than 1 m apart); one column per
+///   (scenario, plugin) run, all systems of the first
 ///   scenario, then of the next, under a two-level header (scenario, then system). A
 ///   failed run shows `failed` in its cells and its reason below the table (Markdown: a
 ///   "Failed runs" list; LaTeX: a footnote line; CSV: a last `status` row). A value that
-///   is missing although the run is ok shows `n/a`.
+///   is missing although the run is ok shows `n/a`. Accepted loops that could not be
+///   judged (no stamps) are listed below the Markdown table.
 /// - `table.json`: `{"<scenario>": {"<plugin>": {"status": "ok" | "failed: <reason>",
-///   "rmse", "mean", "median", "max", "min", "std", "realtime_factor"}}}` with full f64
-///   precision; a failed run has only `status` (see `json.rs`).
+///   "rmse", "mean", "median", "max", "min", "std", "realtime_factor", "loops_accepted",
+///   "loops_false"}}}` with full f64 precision (and `"loops_unjudged"` when not zero); a
+///   failed run has only `status` (see `json.rs`).
 /// - `plots/<scenario>.png` and `.svg`: ground truth in black under every ok system's
 ///   aligned estimate in the system's colour, and a legend below the plot (colour
 ///   swatches in the PNG, which has no font; swatches and names in the SVG). File names

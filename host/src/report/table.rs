@@ -19,6 +19,12 @@ const STATISTIC_DECIMALS: usize = 3;
 /// Label and decimals of the real-time factor row.
 const RTF_LABEL: &str = "RTF";
 const RTF_DECIMALS: usize = 1;
+/// Labels of the loop-closure rows: accepted, and of those the false ones (judged against
+/// ground truth); counts, no decimals.
+const LOOPS_LABEL: &str = "loops";
+const FALSE_LOOPS_LABEL: &str = "false loops";
+/// The error-statistic rows come first in [`Table::rows`]; the others (RTF, loops) after.
+pub(super) const ERROR_ROWS: usize = STATISTICS.len();
 
 /// One column: the run of one plugin on one scenario.
 #[derive(Debug)]
@@ -145,7 +151,7 @@ impl<'a> Table<'a> {
             .filter(move |c| c.run.scenario == scenario)
     }
 
-    /// The rows `max`, `mean`, `median`, `rmse`, `std` and `RTF`.
+    /// The rows `max`, `mean`, `median`, `rmse`, `std`, `RTF`, `loops` and `false loops`.
     pub(super) fn rows(&self) -> Vec<Row> {
         let cell = |column: &Column, value: Option<f64>| match (&column.failure, value) {
             (Some(_), _) => Cell::Failed,
@@ -173,7 +179,34 @@ impl<'a> Table<'a> {
                 .collect(),
             decimals: RTF_DECIMALS,
         });
+        type Count = fn(&eval::LoopCounts) -> usize;
+        let counts: [(&'static str, Count); 2] = [
+            (LOOPS_LABEL, |l| l.accepted),
+            (FALSE_LOOPS_LABEL, |l| l.accepted_false),
+        ];
+        for (label, count) in counts {
+            rows.push(Row {
+                label,
+                cells: self
+                    .columns
+                    .iter()
+                    .map(|c| cell(c, c.run.loops.as_ref().map(|l| count(l) as f64)))
+                    .collect(),
+                decimals: 0,
+            });
+        }
         rows
+    }
+
+    /// The ok runs with accepted loops that could not be judged: (scenario, plugin, how
+    /// many).
+    pub(super) fn unjudged_loops(&self) -> impl Iterator<Item = (&'a str, &'a str, usize)> {
+        self.columns.iter().filter_map(|c| {
+            c.run
+                .loops
+                .filter(|l| l.unjudged > 0)
+                .map(|l| (c.run.scenario.as_str(), c.run.plugin.as_str(), l.unjudged))
+        })
     }
 
     /// The failed runs in column order: (scenario, plugin, reason on one line).

@@ -17,6 +17,7 @@ fn stats(base: f64) -> eval::Statistics {
     }
 }
 
+/// An ok run; `10 × base` loops accepted, `base` of them false.
 fn ok(scenario: &str, plugin: &str, base: f64, rtf: f64, dy: f64) -> RunRecord {
     RunRecord {
         scenario: scenario.to_owned(),
@@ -24,6 +25,12 @@ fn ok(scenario: &str, plugin: &str, base: f64, rtf: f64, dy: f64) -> RunRecord {
         status: RunStatus::Ok,
         ape: Some(stats(base)),
         realtime_factor: Some(rtf),
+        loops: Some(eval::LoopCounts {
+            accepted: 10 * base as usize,
+            accepted_false: base as usize,
+            rejected: 7,
+            unjudged: 0,
+        }),
         estimate_xy: (0..=50).map(|i| (f64::from(i) * 0.5, dy)).collect(),
     }
 }
@@ -32,12 +39,16 @@ fn names(names: &[&str]) -> Vec<String> {
     names.iter().map(|s| (*s).to_owned()).collect()
 }
 
-/// s0: wheel-odometry ok (1.0…), lio_sam ok (2.0…); s1: wheel-odometry ok (3.0…),
-/// lio_sam failed with a reason containing a comma and a quote.
+/// s0: wheel-odometry ok (1.0…), lio_sam ok (2.0…, 4 of its loops unjudged); s1:
+/// wheel-odometry ok (3.0…), lio_sam failed with a reason containing a comma and a quote.
 fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
+    let mut unjudged = ok("s0", "lio_sam", 2.0, 5.06, -0.8);
+    if let Some(loops) = &mut unjudged.loops {
+        loops.unjudged = 4;
+    }
     let runs = vec![
         ok("s0", "wheel-odometry", 1.0, 12.34, 0.8),
-        ok("s0", "lio_sam", 2.0, 5.06, -0.8),
+        unjudged,
         ok("s1", "wheel-odometry", 3.0, 7.26, 1.0),
         RunRecord {
             scenario: "s1".into(),
@@ -45,6 +56,7 @@ fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
             status: RunStatus::Failed("timed out after 600 s, \"no map\"".into()),
             ape: None,
             realtime_factor: None,
+            loops: None,
             estimate_xy: Vec::new(),
         },
     ];
@@ -149,7 +161,17 @@ fn markdown_puts_numbers_under_their_scenario_and_system() {
         ["RTF", "12.3", "5.1", "7.3", "failed"],
         "expected RTF in\n{md}"
     );
-    let widths: Vec<usize> = lines[..9].iter().map(|l| l.chars().count()).collect();
+    assert_eq!(
+        row("loops"),
+        ["loops", "10", "20", "30", "failed"],
+        "expected the accepted loops in\n{md}"
+    );
+    assert_eq!(
+        row("false loops"),
+        ["false loops", "1", "2", "3", "failed"],
+        "expected the false loops in\n{md}"
+    );
+    let widths: Vec<usize> = lines[..11].iter().map(|l| l.chars().count()).collect();
     assert!(
         widths.iter().all(|&w| w == widths[0]),
         "expected padded table lines of one width for the terminal, got {widths:?} in\n{md}"
@@ -157,6 +179,10 @@ fn markdown_puts_numbers_under_their_scenario_and_system() {
     assert!(
         md.contains("Failed runs:\n\n- s1 / lio_sam: timed out after 600 s, \"no map\"\n"),
         "expected the failure reason listed below the table in\n{md}"
+    );
+    assert!(
+        md.contains("Accepted loops without stamps, not judged:\n\n- s0 / lio_sam: 4\n"),
+        "expected the unjudged loops listed below the table in\n{md}"
     );
 }
 
@@ -181,9 +207,11 @@ fn csv_parses_back_to_the_numbers() {
             "rmse",
             "std",
             "RTF",
+            "loops",
+            "false loops",
             "status"
         ],
-        "expected one row per statistic, RTF and status in\n{csv}"
+        "expected one row per statistic, RTF, loops and status in\n{csv}"
     );
     let expected = [
         [1.9, 2.9, 3.9],
@@ -192,8 +220,10 @@ fn csv_parses_back_to_the_numbers() {
         [1.4, 2.4, 3.4],
         [1.05, 2.05, 3.05],
         [12.3, 5.1, 7.3],
+        [10.0, 20.0, 30.0],
+        [1.0, 2.0, 3.0],
     ];
-    for (line, want) in lines[1..7].iter().zip(expected) {
+    for (line, want) in lines[1..9].iter().zip(expected) {
         let fields: Vec<&str> = line.split(',').collect();
         let values: Vec<f64> = fields[1..4]
             .iter()
@@ -209,7 +239,7 @@ fn csv_parses_back_to_the_numbers() {
         );
     }
     assert_eq!(
-        lines[7], "status,ok,ok,ok,\"failed: timed out after 600 s, \"\"no map\"\"\"",
+        lines[9], "status,ok,ok,ok,\"failed: timed out after 600 s, \"\"no map\"\"\"",
         "expected the status row with the reason quoted as RFC 4180 says"
     );
 }
@@ -227,7 +257,7 @@ fn latex_has_multicolumn_headers_and_escaped_labels() {
         "system & wheel-odometry & lio\\_sam & wheel-odometry & lio\\_sam \\\\",
         "\\midrule",
         "rmse & 1.400 & 2.400 & 3.400 & failed \\\\",
-        "RTF & 12.3 & 5.1 & 7.3 & failed \\\\",
+        "\\midrule\nRTF & 12.3 & 5.1 & 7.3 & failed \\\\\nloops & 10 & 20 & 30 & failed \\\\\nfalse loops & 1 & 2 & 3 & failed \\\\\n\\bottomrule",
         "\\bottomrule",
         "\\end{tabular}",
         "Failed runs: s1/lio\\_sam: timed out after 600 s, \"no map\".",
@@ -250,13 +280,16 @@ fn json_has_the_design_shape() {
     let expected = serde_json::json!({
         "s0": {
             "wheel-odometry": {"status": "ok", "rmse": 1.4, "mean": 1.2, "median": 1.3,
-                "max": 1.9, "min": 1.0, "std": 1.05, "realtime_factor": 12.34},
+                "max": 1.9, "min": 1.0, "std": 1.05, "realtime_factor": 12.34,
+                "loops_accepted": 10, "loops_false": 1},
             "lio_sam": {"status": "ok", "rmse": 2.4, "mean": 2.2, "median": 2.3,
-                "max": 2.9, "min": 2.0, "std": 2.05, "realtime_factor": 5.06},
+                "max": 2.9, "min": 2.0, "std": 2.05, "realtime_factor": 5.06,
+                "loops_accepted": 20, "loops_false": 2, "loops_unjudged": 4},
         },
         "s1": {
             "wheel-odometry": {"status": "ok", "rmse": 3.4, "mean": 3.2, "median": 3.3,
-                "max": 3.9, "min": 3.0, "std": 3.05, "realtime_factor": 7.26},
+                "max": 3.9, "min": 3.0, "std": 3.05, "realtime_factor": 7.26,
+                "loops_accepted": 30, "loops_false": 3},
             "lio_sam": {"status": "failed: timed out after 600 s, \"no map\""},
         },
     });

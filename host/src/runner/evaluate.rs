@@ -1,10 +1,11 @@
 //! Scores a finished run: APE (translation) of the final and of the online trajectory
-//! against ground truth, as evo computes it.
+//! against ground truth, as evo computes it, and its loop closures judged against ground
+//! truth (see `loops.rs`).
 
 use std::path::Path;
 
 use anyhow::Context as _;
-use eval::{Alignment, ApeOptions, Statistics};
+use eval::{Alignment, ApeOptions, LoopCounts, Statistics};
 use serde::Serialize;
 
 use super::job::files;
@@ -17,6 +18,9 @@ pub struct Metrics {
     pub ape: Statistics,
     /// APE translation of the poses returned during the run, if any.
     pub online_ape: Option<Statistics>,
+    /// Loop closures accepted (of those, how many were false and, if any, how many could
+    /// not be judged) and rejected.
+    pub loops: LoopCounts,
 }
 
 /// The scores and the aligned final estimate's top view.
@@ -37,7 +41,8 @@ pub fn alignment_name(a: Alignment) -> &'static str {
     }
 }
 
-/// Evaluates the run in `dir` and writes its metrics.json.
+/// Evaluates the run in `dir`, writes its metrics.json and rewrites its events.json with
+/// the judgement of every accepted loop.
 pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
     let gt = eval::read_tum(dir.join(files::GROUNDTRUTH))?;
     let options = ApeOptions {
@@ -52,10 +57,19 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
     } else {
         None
     };
+    let events_path = dir.join(files::EVENTS);
+    let events: Vec<plugin_api::Event> = serde_json::from_str(
+        &std::fs::read_to_string(&events_path)
+            .with_context(|| events_path.display().to_string())?,
+    )
+    .with_context(|| events_path.display().to_string())?;
+    let (loops, judged) = super::loops::judge(events, &gt, &eval::LoopCriteria::default());
+    super::worker::write_json(&events_path, &judged)?;
     let metrics = Metrics {
         alignment: alignment_name(alignment).to_owned(),
         ape: final_.stats,
         online_ape,
+        loops,
     };
     super::worker::write_json(&dir.join(files::METRICS), &metrics)?;
     let estimate_xy = final_

@@ -4,6 +4,7 @@
 
 mod evaluate;
 pub mod job;
+mod loops;
 mod outputs;
 mod supervise;
 mod timing;
@@ -216,6 +217,7 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
         status: RunStatus::Failed(why),
         ape: None,
         realtime_factor: None,
+        loops: None,
         estimate_xy: Vec::new(),
     };
     let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
@@ -239,6 +241,7 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
         status: RunStatus::Ok,
         ape: Some(scored.metrics.ape),
         realtime_factor,
+        loops: Some(scored.metrics.loops),
         estimate_xy: scored.estimate_xy,
     }
 }

@@ -68,25 +68,37 @@ pub fn ate(folder: &Path, file: &str) -> f64 {
         .expect("rmse")
 }
 
-/// The details of a run's events of one kind (`loop_closure_accepted`, …), in order.
-pub fn loop_events(folder: &Path, kind: &str) -> Vec<String> {
+/// A loop-closure event as the host wrote it to events.json.
+#[derive(Debug, Clone)]
+pub struct LoopEvent {
+    pub detail: String,
+    /// The two base-pose stamps the loop joins, `[current, matched]`, if the plugin gave them.
+    pub stamps_ns: Option<[i64; 2]>,
+    /// The host's judgement against ground truth (accepted loops with stamps only).
+    pub true_loop: Option<bool>,
+}
+
+/// A run's loop-closure events of one kind (`loop_closure_accepted`, …), in order.
+pub fn loop_events(folder: &Path, kind: &str) -> Vec<LoopEvent> {
     json(&folder.join("events.json"))
         .as_array()
         .expect("events are a list")
         .iter()
         .filter(|e| e["kind"] == kind)
-        .map(|e| e["detail"].as_str().expect("detail").to_owned())
+        .map(|e| LoopEvent {
+            detail: e["detail"].as_str().expect("detail").to_owned(),
+            stamps_ns: e["loop_stamps_ns"]
+                .as_array()
+                .map(|s| [0, 1].map(|i| s[i].as_i64().expect("loop stamps are integers"))),
+            true_loop: e["true_loop"].as_bool(),
+        })
         .collect()
 }
 
-/// The ground-truth positions of the two locations an event names (`t_ns=…` twice).
-pub fn event_positions(folder: &Path, detail: &str) -> Option<(Vector2<f64>, Vector2<f64>)> {
-    let stamps: Vec<f64> = detail
-        .split("t_ns=")
-        .skip(1)
-        .filter_map(|s| s.split(')').next()?.parse::<i64>().ok())
-        .map(|ns| ns as f64 * 1e-9)
-        .collect();
+/// The ground-truth positions (x, y) of the two base poses a loop event joins, read from
+/// the run's groundtruth.tum (the first pose at or after each stamp).
+pub fn event_positions(folder: &Path, event: &LoopEvent) -> Option<(Vector2<f64>, Vector2<f64>)> {
+    let [a, b] = event.stamps_ns?.map(|ns| ns as f64 * 1e-9);
     let text = std::fs::read_to_string(folder.join("groundtruth.tum")).expect("groundtruth.tum");
     let poses: Vec<[f64; 3]> = text
         .lines()
@@ -103,8 +115,5 @@ pub fn event_positions(folder: &Path, detail: &str) -> Option<(Vector2<f64>, Vec
         let k = poses.partition_point(|p| p[0] < t).min(poses.len() - 1);
         Vector2::new(poses[k][1], poses[k][2])
     };
-    match stamps.as_slice() {
-        [a, b] => Some((at(*a), at(*b))),
-        _ => None,
-    }
+    Some((at(a), at(b)))
 }

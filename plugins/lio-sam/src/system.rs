@@ -267,21 +267,23 @@ impl LioSam {
                     "keyframe {newer} to {older}: ICP fitness {:.4} m²",
                     m.fitness
                 );
-                self.events.push(Event {
+                self.events.push(Event::loop_closure(
                     stamp_ns,
-                    kind: EventKind::LoopClosureAccepted,
+                    EventKind::LoopClosureAccepted,
+                    [stamp_ns, self.keyframes[older].stamp_ns],
                     detail,
-                });
+                ));
             }
             Err(fitness) => {
-                self.events.push(Event {
+                self.events.push(Event::loop_closure(
                     stamp_ns,
-                    kind: EventKind::LoopClosureRejected,
-                    detail: format!(
+                    EventKind::LoopClosureRejected,
+                    [stamp_ns, self.keyframes[older].stamp_ns],
+                    format!(
                         "keyframe {newer} to {older}: ICP fitness {fitness:.4} m² above {}",
                         cfg.max_fitness
                     ),
-                });
+                ));
             }
         }
         Ok(())

@@ -85,11 +85,17 @@ impl Rtabmap {
     }
 
     fn event(&mut self, stamp_ns: i64, kind: EventKind, detail: String) {
-        self.events.push(Event {
-            stamp_ns,
-            kind,
-            detail,
-        });
+        self.events.push(Event::new(stamp_ns, kind, detail));
+    }
+
+    /// A loop closure between location `new` and the older `old`, at `new`'s stamp.
+    fn loop_event(&mut self, kind: EventKind, new: u64, old: u64, detail: String) {
+        let (new_ns, old_ns) = (
+            self.memory.location(new).stamp_ns,
+            self.memory.location(old).stamp_ns,
+        );
+        self.events
+            .push(Event::loop_closure(new_ns, kind, [new_ns, old_ns], detail));
     }
 
     /// Whether a new location is due: a detection period since the last one, and moved.
@@ -200,9 +206,10 @@ impl Rtabmap {
             .map_err(|e| Self::error("OpenCV PnP")(e.to_string()))?;
         let inliers = solved.as_ref().map_or(0, |r| r.inliers.len());
         let Some(result) = solved.filter(|r| r.inliers.len() >= cfg.min_inliers) else {
-            self.event(
-                new_stamp,
+            self.loop_event(
                 EventKind::LoopClosureRejected,
+                new,
+                h.id,
                 format!(
                     "{head}: verification failed, {inliers} PnP inliers of {} words in common (need {})",
                     object.len(),
@@ -254,16 +261,17 @@ impl Rtabmap {
                 s.to
             )
         };
-        let stamp = self.memory.location(new).stamp_ns;
         match outcome {
-            LoopOutcome::Accepted(s) => self.event(
-                stamp,
+            LoopOutcome::Accepted(s) => self.loop_event(
                 EventKind::LoopClosureAccepted,
+                new,
+                old,
                 format!("{what}, {}", strain(&s)),
             ),
-            LoopOutcome::Rejected(s) => self.event(
-                stamp,
+            LoopOutcome::Rejected(s) => self.loop_event(
                 EventKind::LoopClosureRejected,
+                new,
+                old,
                 format!(
                     "{what}, but after optimisation {} > {} (OptimizeMaxError); graph restored",
                     strain(&s),
@@ -329,9 +337,10 @@ impl Rtabmap {
             &self.cfg.proximity,
         ) {
             Err(why) => {
-                self.event(
-                    this.stamp_ns,
+                self.loop_event(
                     EventKind::LoopClosureRejected,
+                    new,
+                    old.id,
                     format!("{head}: {why}"),
                 );
                 Ok(())

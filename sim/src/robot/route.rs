@@ -56,7 +56,6 @@ impl Route {
             }
         };
         let end = v.row_length_m;
-        let half = 0.5 * v.row_spacing_m;
         let legs = match *spec {
             RouteSpec::Straight {
                 lane,
@@ -84,7 +83,7 @@ impl Route {
             }
             RouteSpec::AdjacentLane { lane, overshoot_m } => {
                 check_lane(lane + 1)?;
-                vec![Leg::Drive(serpentine(v, lane, 2, overshoot_m, half))]
+                vec![Leg::Drive(serpentine(v, &[lane, lane + 1], overshoot_m))]
             }
             RouteSpec::Serpentine {
                 first_lane,
@@ -92,13 +91,17 @@ impl Route {
                 overshoot_m,
             } => {
                 check_lane(first_lane + lanes - 1)?;
-                vec![Leg::Drive(serpentine(
-                    v,
-                    first_lane,
-                    lanes,
-                    overshoot_m,
-                    half,
-                ))]
+                let lanes: Vec<usize> = (first_lane..first_lane + lanes).collect();
+                vec![Leg::Drive(serpentine(v, &lanes, overshoot_m))]
+            }
+            RouteSpec::LaneSequence {
+                ref lanes,
+                overshoot_m,
+            } => {
+                for &lane in lanes {
+                    check_lane(lane)?;
+                }
+                vec![Leg::Drive(serpentine(v, lanes, overshoot_m))]
             }
             RouteSpec::Waypoints { ref points } => {
                 let mut path = vec![Point2::from(points[0])];
@@ -149,36 +152,28 @@ fn arc(centre: Point2<f64>, r: f64, from: f64, sweep: f64) -> Vec<Point2<f64>> {
         .collect()
 }
 
-/// Up and down `lanes` lanes from `first`, joined by U-turns of radius `r` beyond the rows.
-fn serpentine(
-    v: &VineyardConfig,
-    first: usize,
-    lanes: usize,
-    overshoot: f64,
-    r: f64,
-) -> Vec<Point2<f64>> {
+/// Along `lanes` in order (two in a row differ), the first along +x and then alternating,
+/// from `overshoot` before the rows to `overshoot` past them, joined by U-turns beyond the
+/// rows: half circles of radius half the distance between the two lanes.
+fn serpentine(v: &VineyardConfig, lanes: &[usize], overshoot: f64) -> Vec<Point2<f64>> {
+    use std::f64::consts::{FRAC_PI_2, PI};
     let (lo, hi) = (-overshoot, v.row_length_m + overshoot);
     let mut path: Vec<Point2<f64>> = Vec::new();
-    for k in 0..lanes {
-        let y = v.lane_y(first + k);
+    for (k, &lane) in lanes.iter().enumerate() {
+        let y = v.lane_y(lane);
         let forward = k % 2 == 0;
         let (a, b) = if forward { (lo, hi) } else { (hi, lo) };
         let skip = usize::from(!path.is_empty());
         path.extend(segment([a, y], [b, y]).into_iter().skip(skip));
-        if k + 1 < lanes {
-            let centre = Point2::new(b, y + 0.5 * (v.lane_y(first + k + 1) - y));
-            let half_pi = std::f64::consts::FRAC_PI_2;
-            // Turn left at the far end (counter-clockwise), right at the near end.
-            let (from, sweep) = if forward {
-                (-half_pi, std::f64::consts::PI)
-            } else {
-                (-half_pi, -std::f64::consts::PI)
-            };
-            path.extend(
-                arc(centre, r.min(0.5 * v.row_spacing_m), from, sweep)
-                    .into_iter()
-                    .skip(1),
-            );
+        if let Some(&next) = lanes.get(k + 1) {
+            let centre = Point2::new(b, y + 0.5 * (v.lane_y(next) - y));
+            let r = 0.5 * v.row_spacing_m * next.abs_diff(lane) as f64;
+            // From the side of the centre the robot is on, round the outside of the rows:
+            // counter-clockwise when going east to a higher lane or west to a lower one.
+            let up = next > lane;
+            let from = if up { -FRAC_PI_2 } else { FRAC_PI_2 };
+            let sweep = if forward == up { PI } else { -PI };
+            path.extend(arc(centre, r, from, sweep).into_iter().skip(1));
         }
     }
     path
@@ -189,10 +184,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn paper_routes_have_the_papers_nominal_lengths() {
+    fn builtin_routes_have_their_nominal_lengths() {
         let v = VineyardConfig::default();
-        for (name, expected) in [("s0", 25.0), ("s1", 48.6), ("s2", 54.6), ("s3", 101.2)] {
-            let spec = &RouteSpec::paper_scenarios()[name];
+        // The paper's S0-S3; s4: three lanes of 18 + 2 × 3.47 m and two U-turns of 1.5 m.
+        let s4 = 3.0 * (18.0 + 2.0 * 3.47) + 2.0 * std::f64::consts::PI * 1.5;
+        for (name, expected) in [
+            ("s0", 25.0),
+            ("s1", 48.6),
+            ("s2", 54.6),
+            ("s3", 101.2),
+            ("s4", s4),
+        ] {
+            let spec = &RouteSpec::builtin_scenarios()[name];
             let len = Route::build(name, spec, &v).expect("route builds").length();
             assert!(
                 (len - expected).abs() / expected < 0.005,
@@ -212,6 +215,68 @@ mod tests {
         assert!(
             e.to_string().contains("mine") && e.to_string().contains("lane 8"),
             "{e}"
+        );
+    }
+
+    /// The points of a drive leg whose heading (to the next point) is within 1° of `yaw`
+    /// and lie on `y`, as (min x, max x).
+    fn driven_along(points: &[Point2<f64>], y: f64, yaw: f64) -> Option<(f64, f64)> {
+        let xs: Vec<f64> = points
+            .windows(2)
+            .filter(|w| {
+                let d = w[1] - w[0];
+                let off = (d.y.atan2(d.x) - yaw + std::f64::consts::PI)
+                    .rem_euclid(std::f64::consts::TAU)
+                    - std::f64::consts::PI;
+                (w[0].y - y).abs() < 1e-9 && off.abs() < 1f64.to_radians()
+            })
+            .map(|w| w[0].x)
+            .collect();
+        let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (!xs.is_empty()).then_some((lo, hi))
+    }
+
+    #[test]
+    fn a_lane_sequence_turns_round_the_row_ends_into_each_lane() {
+        let v = VineyardConfig::default();
+        // Down, up by two lanes, and down by one: every U-turn stays beyond the rows.
+        let spec = RouteSpec::LaneSequence {
+            lanes: vec![5, 3, 4],
+            overshoot_m: 2.0,
+        };
+        let route = Route::build("mine", &spec, &v).expect("builds");
+        let [Leg::Drive(points)] = route.legs.as_slice() else {
+            panic!("one drive leg: {:?}", route.legs.len());
+        };
+        let (east, west) = (0.0, std::f64::consts::PI);
+        for (lane, yaw) in [(5, east), (3, west), (4, east)] {
+            let (lo, hi) = driven_along(points, v.lane_y(lane), yaw)
+                .unwrap_or_else(|| panic!("lane {lane} is driven at yaw {yaw}"));
+            assert!(
+                lo < -1.9 && hi > v.row_length_m + 1.9,
+                "lane {lane}: {lo}..{hi}"
+            );
+        }
+        assert!(
+            points.iter().all(
+                |p| p.x <= -2.0 + 1e-9 || p.x >= v.row_length_m + 2.0 - 1e-9 || {
+                    [3, 4, 5].iter().any(|&l| (p.y - v.lane_y(l)).abs() < 1e-9)
+                }
+            ),
+            "between the row ends the path keeps to the lanes"
+        );
+        let steps: Vec<f64> = points.windows(2).map(|w| (w[1] - w[0]).norm()).collect();
+        assert!(
+            steps.iter().all(|&d| d > 1e-6 && d <= STEP_M + 1e-9),
+            "dense and without repeated points: max step {:?}",
+            steps.iter().copied().fold(0.0, f64::max)
+        );
+        let expected = 3.0 * (18.0 + 4.0) + std::f64::consts::PI * (3.0 + 1.5);
+        assert!(
+            (route.length() - expected).abs() < 0.01,
+            "{}",
+            route.length()
         );
     }
 }

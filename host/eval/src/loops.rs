@@ -1,0 +1,268 @@
+//! Loop closures judged against ground truth.
+//!
+//! A loop closure joins two base poses of the run, at two stamps. It is *true* when, in
+//! ground truth, those two poses are within [`LoopCriteria::max_distance_m`] of each other
+//! (3D distance between the base origins) and, if the criteria limit it, their headings
+//! (yaw, the Z of Z-Y-X Euler angles, so roll and pitch from uneven ground do not count)
+//! differ by at most [`LoopCriteria::max_heading_rad`].
+//!
+//! The default is 1.0 m at any heading: a loop closed by scan or lidar registration
+//! between the two directions of one lane (S1: the robot comes back the way it came) joins
+//! the same place and is true; identical rows 3 m or more apart are not. 1.0 m and 30°
+//! ([`LoopCriteria::same_view`]) asks for the same view as well, which would judge every
+//! such reversed loop false. Either way the distance and the heading difference are
+//! reported with the verdict.
+//!
+//! Ground truth is resampled at each stamp as the association does (linear position,
+//! slerp orientation between the bracketing poses); a stamp more than one mean sampling
+//! period outside the ground truth's time span cannot be judged.
+
+use serde::{Deserialize, Serialize};
+
+use crate::associate::interpolate;
+use crate::trajectory::Trajectory;
+
+/// When a loop closure counts as true.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopCriteria {
+    /// Largest distance between the two base poses, metres (inclusive).
+    pub max_distance_m: f64,
+    /// Largest heading (yaw) difference, radians (inclusive); `None`: any heading.
+    pub max_heading_rad: Option<f64>,
+}
+
+impl Default for LoopCriteria {
+    /// 1.0 m, any heading: the same place.
+    fn default() -> Self {
+        Self {
+            max_distance_m: 1.0,
+            max_heading_rad: None,
+        }
+    }
+}
+
+impl LoopCriteria {
+    /// 1.0 m and 30° of heading: the same place seen the same way.
+    pub fn same_view() -> Self {
+        Self {
+            max_heading_rad: Some(30f64.to_radians()),
+            ..Self::default()
+        }
+    }
+}
+
+/// Where the two poses a loop joins are in ground truth, and the verdict.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopJudgement {
+    /// Distance between the two base poses, metres.
+    pub distance_m: f64,
+    /// Absolute heading difference, radians, in [0, π].
+    pub heading_rad: f64,
+    /// Within the criteria (distance and, if limited, heading).
+    pub true_loop: bool,
+}
+
+/// Judges the loop closure joining the base poses at `stamps_s` (seconds, in either
+/// order) against `groundtruth`. `None` if the ground truth has fewer than two poses or a
+/// stamp lies more than one mean sampling period outside its time span.
+pub fn judge_loop(
+    groundtruth: &Trajectory,
+    stamps_s: [f64; 2],
+    criteria: &LoopCriteria,
+) -> Option<LoopJudgement> {
+    let n = groundtruth.len();
+    if n < 2 {
+        return None;
+    }
+    let (first, last) = (groundtruth.stamps[0], groundtruth.stamps[n - 1]);
+    let period = (last - first) / (n - 1) as f64;
+    if stamps_s
+        .iter()
+        .any(|&t| !t.is_finite() || t < first - period || t > last + period)
+    {
+        return None;
+    }
+    let [a, b] = stamps_s.map(|t| interpolate(groundtruth, t));
+    let distance_m = (a.translation.vector - b.translation.vector).norm();
+    let heading = |p: &nalgebra::Isometry3<f64>| p.rotation.euler_angles().2;
+    let heading_rad = wrap_angle(heading(&a) - heading(&b)).abs();
+    Some(LoopJudgement {
+        distance_m,
+        heading_rad,
+        true_loop: distance_m <= criteria.max_distance_m
+            && criteria
+                .max_heading_rad
+                .is_none_or(|max| heading_rad <= max),
+    })
+}
+
+/// `angle` in [-π, π).
+fn wrap_angle(angle: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    (angle + PI).rem_euclid(TAU) - PI
+}
+
+/// A run's loop closures: `metrics.json`'s `"loops"`.
+///
+/// Every accepted loop counts in `accepted`; of those, the ones judged false also in
+/// `accepted_false`, and the ones that could not be judged (no stamps, as from a plugin
+/// built before loop events carried them, or stamps outside the ground truth) in
+/// `unjudged` instead, which is written only when not zero. Rejected loops are counted,
+/// not judged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct LoopCounts {
+    pub accepted: usize,
+    pub accepted_false: usize,
+    pub rejected: usize,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub unjudged: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+impl LoopCounts {
+    /// Counts one accepted loop with its judgement (`None`: not judged).
+    pub fn add_accepted(&mut self, judgement: Option<&LoopJudgement>) {
+        self.accepted += 1;
+        match judgement {
+            Some(j) if !j.true_loop => self.accepted_false += 1,
+            Some(_) => {}
+            None => self.unjudged += 1,
+        }
+    }
+
+    /// Counts one rejected loop.
+    pub fn add_rejected(&mut self) {
+        self.rejected += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+    use super::*;
+
+    /// 0.01 s apart (100 Hz): x = t, y = 0, yaw = t / 10 rad, with a little roll.
+    fn groundtruth() -> Trajectory {
+        let stamps: Vec<f64> = (0..=1000).map(|i| f64::from(i) * 0.01).collect();
+        let poses = stamps
+            .iter()
+            .map(|&t| {
+                Isometry3::from_parts(
+                    Translation3::new(t, 0.0, 0.1 * t),
+                    UnitQuaternion::from_euler_angles(0.05, 0.0, 0.1 * t),
+                )
+            })
+            .collect();
+        Trajectory::new(stamps, poses)
+    }
+
+    #[test]
+    fn distance_and_heading_are_interpolated_between_samples() {
+        let j = judge_loop(&groundtruth(), [2.005, 2.505], &LoopCriteria::same_view())
+            .expect("inside the span");
+        // 0.5 m along x and 0.05 m up; 0.05 rad of yaw.
+        assert!((j.distance_m - 0.5f64.hypot(0.05)).abs() < 1e-9, "{j:?}");
+        assert!((j.heading_rad - 0.05).abs() < 1e-9, "{j:?}");
+        assert!(j.true_loop);
+    }
+
+    #[test]
+    fn limits_are_inclusive_and_either_one_makes_a_loop_false() {
+        let gt = groundtruth();
+        let loose = LoopCriteria {
+            max_distance_m: 1.0,
+            max_heading_rad: Some(1.0),
+        };
+        // 0.9 m along x, 0.09 m up: 0.9045 m.
+        let near = judge_loop(&gt, [1.0, 1.9], &loose).expect("judged");
+        assert!(near.true_loop, "{near:?}");
+        let far = judge_loop(&gt, [1.0, 2.1], &loose).expect("judged");
+        assert!(!far.true_loop && far.distance_m > 1.0, "{far:?}");
+        let exactly = LoopCriteria {
+            max_distance_m: near.distance_m,
+            max_heading_rad: Some(near.heading_rad),
+        };
+        assert!(
+            judge_loop(&gt, [1.0, 1.9], &exactly)
+                .expect("judged")
+                .true_loop
+        );
+        let strict_heading = LoopCriteria {
+            max_distance_m: 1.0,
+            max_heading_rad: Some(0.08),
+        };
+        let turned = judge_loop(&gt, [1.0, 1.9], &strict_heading).expect("judged");
+        assert!(
+            !turned.true_loop && (turned.heading_rad - 0.09).abs() < 1e-9,
+            "{turned:?}"
+        );
+        let any_heading = LoopCriteria {
+            max_heading_rad: None,
+            ..strict_heading
+        };
+        assert!(
+            judge_loop(&gt, [1.0, 1.9], &any_heading)
+                .expect("judged")
+                .true_loop
+        );
+    }
+
+    #[test]
+    fn heading_wraps_around_pi() {
+        let at = |yaw: f64| Isometry3::new(Vector3::zeros(), Vector3::z() * yaw);
+        let gt = Trajectory::new(vec![0.0, 1.0], vec![at(3.0), at(-3.0)]);
+        let j = judge_loop(&gt, [0.0, 1.0], &LoopCriteria::same_view()).expect("judged");
+        assert!(
+            (j.heading_rad - (std::f64::consts::TAU - 6.0)).abs() < 1e-9,
+            "{j:?}"
+        );
+        assert!(j.true_loop);
+    }
+
+    #[test]
+    fn stamps_outside_the_ground_truth_are_not_judged() {
+        let gt = groundtruth();
+        let c = LoopCriteria::default();
+        // Within one period (0.01 s) of the ends: the end pose.
+        assert!(judge_loop(&gt, [-0.005, 10.005], &c).is_some());
+        assert_eq!(judge_loop(&gt, [-0.5, 1.0], &c), None);
+        assert_eq!(judge_loop(&gt, [1.0, 10.5], &c), None);
+        assert_eq!(judge_loop(&gt, [1.0, f64::NAN], &c), None);
+        assert_eq!(judge_loop(&Trajectory::default(), [0.0, 0.0], &c), None);
+    }
+
+    #[test]
+    fn counts_split_accepted_loops_into_false_and_unjudged() {
+        let verdict = |true_loop| LoopJudgement {
+            distance_m: 0.0,
+            heading_rad: 0.0,
+            true_loop,
+        };
+        let mut counts = LoopCounts::default();
+        counts.add_accepted(Some(&verdict(true)));
+        counts.add_accepted(Some(&verdict(false)));
+        counts.add_accepted(None);
+        counts.add_rejected();
+        assert_eq!(
+            counts,
+            LoopCounts {
+                accepted: 3,
+                accepted_false: 1,
+                rejected: 1,
+                unjudged: 1
+            }
+        );
+        assert_eq!(
+            serde_json::to_value(LoopCounts {
+                unjudged: 0,
+                ..counts
+            })
+            .expect("json"),
+            serde_json::json!({"accepted": 3, "accepted_false": 1, "rejected": 1})
+        );
+    }
+}

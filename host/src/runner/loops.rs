@@ -1,0 +1,195 @@
+//! A run's loop closures judged against ground truth (`eval::judge_loop`). The host uses
+//! `LoopCriteria::default()`: true when the two base poses a loop joins are within 1.0 m
+//! in ground truth, at any heading — a loop closed by scan registration between the two
+//! directions of one lane joins the same place (DESIGN.md's 30° of heading as well,
+//! `LoopCriteria::same_view()`, would judge all 33 that rtabmap accepts in S1 false,
+//! every one within 0.3 m and 180° apart). The heading difference is reported with every
+//! verdict.
+//!
+//! Every accepted loop is judged from the two stamps its event carries
+//! (`Event::loop_stamps_ns`). An accepted loop without stamps (a plugin built before
+//! events carried them) or with stamps outside the ground truth is counted in `accepted`
+//! and in `unjudged`, never in `accepted_false`. Rejected loops are counted, not judged.
+
+use eval::{LoopCounts, LoopCriteria, LoopJudgement, Trajectory};
+use plugin_api::{Event, EventKind};
+use serde::Serialize;
+
+/// One entry of `events.json`: the plugin's event as it sent it (`stamp_ns`, `kind`,
+/// `detail`, `loop_stamps_ns` when given) and, for an accepted loop that could be judged,
+/// `true_loop` with the ground-truth distance and heading difference it was judged on.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JudgedEvent {
+    #[serde(flatten)]
+    pub event: Event,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub true_loop: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gt_distance_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gt_heading_deg: Option<f64>,
+}
+
+/// Judges every accepted loop of `events` against `groundtruth` by `criteria`; returns the
+/// counts and the events with their judgements, in the plugin's order.
+pub fn judge(
+    events: Vec<Event>,
+    groundtruth: &Trajectory,
+    criteria: &LoopCriteria,
+) -> (LoopCounts, Vec<JudgedEvent>) {
+    let mut counts = LoopCounts::default();
+    let judged = events
+        .into_iter()
+        .map(|event| {
+            let judgement: Option<LoopJudgement> = match event.kind {
+                EventKind::LoopClosureAccepted => {
+                    let judgement = event.loop_stamps_ns.and_then(|stamps| {
+                        eval::judge_loop(groundtruth, stamps.map(|ns| ns as f64 * 1e-9), criteria)
+                    });
+                    counts.add_accepted(judgement.as_ref());
+                    judgement
+                }
+                EventKind::LoopClosureRejected => {
+                    counts.add_rejected();
+                    None
+                }
+                EventKind::TrackingLost | EventKind::TrackingRecovered => None,
+            };
+            JudgedEvent {
+                event,
+                true_loop: judgement.map(|j| j.true_loop),
+                gt_distance_m: judgement.map(|j| j.distance_m),
+                gt_heading_deg: judgement.map(|j| j.heading_rad.to_degrees()),
+            }
+        })
+        .collect();
+    (counts, judged)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Vector3};
+
+    use super::*;
+
+    const S: i64 = 1_000_000_000;
+
+    /// A lane driven east along y = 0 (x = t m for t in 0…10 s), back west along
+    /// y = 0.5 (10…20 s, x = 20 - t), then east again along y = 0.3 (20…30 s,
+    /// x = t - 20). 100 Hz.
+    fn groundtruth() -> Trajectory {
+        let stamps: Vec<f64> = (0..=3000).map(|i| f64::from(i) * 0.01).collect();
+        let poses = stamps
+            .iter()
+            .map(|&t| {
+                let (x, y, yaw) = if t <= 10.0 {
+                    (t, 0.0, 0.0)
+                } else if t <= 20.0 {
+                    (20.0 - t, 0.5, std::f64::consts::PI)
+                } else {
+                    (t - 20.0, 0.3, 0.0)
+                };
+                Isometry3::new(Vector3::new(x, y, 0.0), Vector3::z() * yaw)
+            })
+            .collect();
+        Trajectory::new(stamps, poses)
+    }
+
+    fn accepted(current: i64, matched: i64) -> Event {
+        Event::loop_closure(
+            current,
+            EventKind::LoopClosureAccepted,
+            [current, matched],
+            "test",
+        )
+    }
+
+    #[test]
+    fn accepted_loops_are_judged_by_distance_and_heading() {
+        let events = vec![
+            // Same place, same heading, 0.3 m across the lane: true.
+            accepted(25 * S, 5 * S),
+            // Same heading, 2 m along the lane: false by distance.
+            accepted(25 * S, 3 * S),
+            // 0.5 m apart but facing the other way: false by heading (same view asked).
+            accepted(15 * S, 5 * S),
+            // A rejected loop: counted, not judged, even if it is false.
+            Event::loop_closure(26 * S, EventKind::LoopClosureRejected, [26 * S, S], "x"),
+            // An accepted loop from a plugin that sends no stamps: counted, not judged.
+            Event::new(27 * S, EventKind::LoopClosureAccepted, "old plugin"),
+            Event::new(28 * S, EventKind::TrackingLost, "dark"),
+        ];
+        let (counts, judged) = judge(events.clone(), &groundtruth(), &LoopCriteria::same_view());
+        assert_eq!(
+            counts,
+            LoopCounts {
+                accepted: 4,
+                accepted_false: 2,
+                rejected: 1,
+                unjudged: 1
+            }
+        );
+        let verdicts: Vec<Option<bool>> = judged.iter().map(|j| j.true_loop).collect();
+        assert_eq!(
+            verdicts,
+            [Some(true), Some(false), Some(false), None, None, None]
+        );
+        let distances: Vec<f64> = judged[..3]
+            .iter()
+            .map(|j| j.gt_distance_m.expect("judged"))
+            .collect();
+        for (d, want) in distances.iter().zip([0.3, 2f64.hypot(0.3), 0.5]) {
+            assert!((d - want).abs() < 1e-9, "{distances:?}");
+        }
+        let headings: Vec<f64> = judged[..3]
+            .iter()
+            .map(|j| j.gt_heading_deg.expect("judged"))
+            .collect();
+        for (h, want) in headings.iter().zip([0.0, 0.0, 180.0]) {
+            assert!((h - want).abs() < 1e-9, "{headings:?}");
+        }
+        assert_eq!(
+            judged.iter().map(|j| j.event.clone()).collect::<Vec<_>>(),
+            events
+        );
+        // The host's default: the same place at any heading, so the reversed loop is true.
+        let (counts, judged) = judge(events, &groundtruth(), &LoopCriteria::default());
+        assert_eq!(
+            counts,
+            LoopCounts {
+                accepted: 4,
+                accepted_false: 1,
+                rejected: 1,
+                unjudged: 1
+            }
+        );
+        assert_eq!(judged[2].true_loop, Some(true));
+        assert!((judged[2].gt_heading_deg.expect("judged") - 180.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn events_json_carries_the_stamps_and_the_verdict() {
+        let events = vec![
+            accepted(25 * S, 5 * S),
+            Event::new(27 * S, EventKind::LoopClosureAccepted, "old plugin"),
+        ];
+        let (_, judged) = judge(events, &groundtruth(), &LoopCriteria::default());
+        let json = serde_json::to_value(&judged).expect("json");
+        assert_eq!(json[0]["stamp_ns"], 25 * S);
+        assert_eq!(json[0]["kind"], "loop_closure_accepted");
+        assert_eq!(
+            json[0]["loop_stamps_ns"],
+            serde_json::json!([25 * S, 5 * S])
+        );
+        assert_eq!(json[0]["true_loop"], true);
+        assert!((json[0]["gt_distance_m"].as_f64().expect("distance") - 0.3).abs() < 1e-9);
+        assert_eq!(
+            json[1],
+            serde_json::json!({
+                "stamp_ns": 27 * S,
+                "kind": "loop_closure_accepted",
+                "detail": "old plugin"
+            })
+        );
+    }
+}
