@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use nalgebra::Vector2;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector2};
 
 /// Where cargo put the test's libraries, the plugins' `.so` among them.
 pub fn deps_dir() -> PathBuf {
@@ -116,4 +116,63 @@ pub fn event_positions(folder: &Path, event: &LoopEvent) -> Option<(Vector2<f64>
         Vector2::new(poses[k][1], poses[k][2])
     };
     Some((at(a), at(b)))
+}
+
+/// A TUM trajectory: seconds and `map_from_base`.
+pub fn read_tum(path: &Path) -> Vec<(f64, Isometry3<f64>)> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .map(|x| x.parse().expect("number"))
+                .collect();
+            let pose = Isometry3::from_parts(
+                Translation3::new(v[1], v[2], v[3]),
+                UnitQuaternion::from_quaternion(Quaternion::new(v[7], v[4], v[5], v[6])),
+            );
+            (v[0], pose)
+        })
+        .collect()
+}
+
+/// The ground truth at `t`, interpolated (100 Hz poses; frames fall between them).
+pub fn at(gt: &[(f64, Isometry3<f64>)], t: f64) -> Isometry3<f64> {
+    let k = gt.partition_point(|p| p.0 < t).clamp(1, gt.len() - 1);
+    let ((t0, a), (t1, b)) = (gt[k - 1], gt[k]);
+    let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    let translation = a.translation.vector.lerp(&b.translation.vector, s);
+    Isometry3::from_parts(
+        Translation3::from(translation),
+        a.rotation.slerp(&b.rotation, s),
+    )
+}
+
+/// Relative pose errors of the online estimate over `dt` seconds: translation (m) and
+/// rotation (deg) of every pair of tracked frames `dt` apart.
+pub fn relative_errors(folder: &Path, dt: f64) -> Vec<(f64, f64)> {
+    let gt = read_tum(&folder.join("groundtruth.tum"));
+    let est = read_tum(&folder.join("online.tum"));
+    let mut out = Vec::new();
+    for (i, &(t, a)) in est.iter().enumerate() {
+        let Some(&(u, b)) = est[i..].iter().find(|(u, _)| *u >= t + dt - 1e-3) else {
+            break;
+        };
+        if (u - t - dt).abs() > 0.02 {
+            continue;
+        }
+        let truth = at(&gt, t).inverse() * at(&gt, u);
+        let error = truth.inverse() * (a.inverse() * b);
+        out.push((
+            error.translation.vector.norm(),
+            error.rotation.angle().to_degrees(),
+        ));
+    }
+    out
+}
+
+pub fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
 }

@@ -463,7 +463,7 @@ mod tests {
         let descriptors: Vec<Descriptor> = (0..400).map(|_| rng.random()).collect();
         let depth = vec![2.0f32; 640 * 480];
         let vocabulary = Vocabulary::train(
-            &[descriptors.clone()],
+            std::slice::from_ref(&descriptors),
             &TrainConfig {
                 k: 10,
                 levels: 3,
