@@ -7,6 +7,7 @@
 
 use nalgebra::{Isometry3, Vector3};
 use slam_common::bow::hamming;
+use slam_common::vocabulary::NodeId;
 
 use crate::frame::{Camera, Descriptor, Frame};
 use crate::map::Map;
@@ -52,6 +53,28 @@ pub fn rotation_outliers(rotations: &[(usize, f32)]) -> Vec<usize> {
         .filter(|b| !keep.contains(b))
         .flat_map(|b| bins[b].iter().copied())
         .collect()
+}
+
+/// The feature lists two frames hold under the same vocabulary node (DBoW2's direct
+/// index), node by node: the candidates of every BoW search.
+pub fn common_nodes<'a>(
+    a: &'a [(NodeId, Vec<u32>)],
+    b: &'a [(NodeId, Vec<u32>)],
+) -> Vec<(&'a [u32], &'a [u32])> {
+    let (mut ia, mut ib) = (0, 0);
+    let mut out = Vec::new();
+    while ia < a.len() && ib < b.len() {
+        match a[ia].0.cmp(&b[ib].0) {
+            std::cmp::Ordering::Less => ia += 1,
+            std::cmp::Ordering::Greater => ib += 1,
+            std::cmp::Ordering::Equal => {
+                out.push((a[ia].1.as_slice(), b[ib].1.as_slice()));
+                ia += 1;
+                ib += 1;
+            }
+        }
+    }
+    out
 }
 
 /// Best and second-best Hamming distance over candidates.
@@ -165,45 +188,34 @@ pub fn search_bow_frame(map: &Map, kf: usize, current: &mut Frame, ratio: f64) -
     let mut best_for: Vec<Option<(u32, usize)>> = vec![None; current.len()];
     let mut sources = Vec::new();
     let (a, b) = (&k.features.entries, &current.features.entries);
-    let (mut ia, mut ib) = (0, 0);
-    while ia < a.len() && ib < b.len() {
-        match a[ia].0.cmp(&b[ib].0) {
-            std::cmp::Ordering::Less => ia += 1,
-            std::cmp::Ordering::Greater => ib += 1,
-            std::cmp::Ordering::Equal => {
-                for &fk in &a[ia].1 {
-                    let fk = fk as usize;
-                    let Some(p) = k.points[fk].and_then(|p| map.resolve(p)) else {
-                        continue;
-                    };
-                    let d = &k.descriptors[fk];
-                    let (d1, d2, best) = best_two(
-                        d,
-                        b[ib]
-                            .1
-                            .iter()
-                            .map(|&i| i as usize)
-                            .filter(|&i| current.matches[i].is_none())
-                            .map(|i| (i, current.descriptors[i])),
-                    );
-                    let Some(i) = best else { continue };
-                    if d1 <= TH_LOW
-                        && f64::from(d1) < ratio * f64::from(d2)
-                        && best_for[i].is_none_or(|(d, _)| d1 < d)
-                    {
-                        best_for[i] = Some((d1, sources.len()));
-                        let key = &k.keys[fk];
-                        sources.push(Source {
-                            world: map.points[p].world,
-                            descriptor: *d,
-                            octave: key.octave,
-                            angle_deg: key.angle_deg,
-                            map_point: Some(p),
-                        });
-                    }
-                }
-                ia += 1;
-                ib += 1;
+    for (na, nb) in common_nodes(a, b) {
+        for &fk in na {
+            let fk = fk as usize;
+            let Some(p) = k.points[fk].and_then(|p| map.resolve(p)) else {
+                continue;
+            };
+            let d = &k.descriptors[fk];
+            let (d1, d2, best) = best_two(
+                d,
+                nb.iter()
+                    .map(|&i| i as usize)
+                    .filter(|&i| current.matches[i].is_none())
+                    .map(|i| (i, current.descriptors[i])),
+            );
+            let Some(i) = best else { continue };
+            if d1 <= TH_LOW
+                && f64::from(d1) < ratio * f64::from(d2)
+                && best_for[i].is_none_or(|(d, _)| d1 < d)
+            {
+                best_for[i] = Some((d1, sources.len()));
+                let key = &k.keys[fk];
+                sources.push(Source {
+                    world: map.points[p].world,
+                    descriptor: *d,
+                    octave: key.octave,
+                    angle_deg: key.angle_deg,
+                    map_point: Some(p),
+                });
             }
         }
     }
@@ -217,39 +229,27 @@ pub fn search_bow_keyframes(map: &Map, kf1: usize, kf2: usize, ratio: f64) -> Ve
     let mut best_for: Vec<Option<(u32, usize)>> = vec![None; f2.len()];
     let mut rotations = Vec::new();
     let (a, b) = (&f1.features.entries, &f2.features.entries);
-    let (mut ia, mut ib) = (0, 0);
     let mut chosen: Vec<Option<usize>> = vec![None; f1.len()];
-    while ia < a.len() && ib < b.len() {
-        match a[ia].0.cmp(&b[ib].0) {
-            std::cmp::Ordering::Less => ia += 1,
-            std::cmp::Ordering::Greater => ib += 1,
-            std::cmp::Ordering::Equal => {
-                for &i1 in &a[ia].1 {
-                    let i1 = i1 as usize;
-                    if f1.points[i1].and_then(|p| map.resolve(p)).is_none() {
-                        continue;
-                    }
-                    let (d1, d2, best) = best_two(
-                        &f1.descriptors[i1],
-                        b[ib]
-                            .1
-                            .iter()
-                            .map(|&i| i as usize)
-                            .filter(|&i| {
-                                best_for[i].is_none()
-                                    && f2.points[i].and_then(|p| map.resolve(p)).is_some()
-                            })
-                            .map(|i| (i, f2.descriptors[i])),
-                    );
-                    let Some(i2) = best else { continue };
-                    if d1 <= TH_LOW && f64::from(d1) < ratio * f64::from(d2) {
-                        best_for[i2] = Some((d1, i1));
-                        chosen[i1] = Some(i2);
-                        rotations.push((i1, f1.keys[i1].angle_deg - f2.keys[i2].angle_deg));
-                    }
-                }
-                ia += 1;
-                ib += 1;
+    for (na, nb) in common_nodes(a, b) {
+        for &i1 in na {
+            let i1 = i1 as usize;
+            if f1.points[i1].and_then(|p| map.resolve(p)).is_none() {
+                continue;
+            }
+            let (d1, d2, best) = best_two(
+                &f1.descriptors[i1],
+                nb.iter()
+                    .map(|&i| i as usize)
+                    .filter(|&i| {
+                        best_for[i].is_none() && f2.points[i].and_then(|p| map.resolve(p)).is_some()
+                    })
+                    .map(|i| (i, f2.descriptors[i])),
+            );
+            let Some(i2) = best else { continue };
+            if d1 <= TH_LOW && f64::from(d1) < ratio * f64::from(d2) {
+                best_for[i2] = Some((d1, i1));
+                chosen[i1] = Some(i2);
+                rotations.push((i1, f1.keys[i1].angle_deg - f2.keys[i2].angle_deg));
             }
         }
     }

@@ -11,7 +11,7 @@ use slam_common::bow::hamming;
 
 use crate::frame::{Camera, Frame};
 use crate::map::Map;
-use crate::matcher::{TH_LOW, rotation_outliers};
+use crate::matcher::{TH_LOW, common_nodes, rotation_outliers};
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
@@ -73,51 +73,39 @@ fn search_for_triangulation(
     let mut pairs = Vec::new();
     let mut rotations = Vec::new();
     let (a, b) = (&f1.features.entries, &f2.features.entries);
-    let (mut ia, mut ib) = (0, 0);
-    while ia < a.len() && ib < b.len() {
-        match a[ia].0.cmp(&b[ib].0) {
-            std::cmp::Ordering::Less => ia += 1,
-            std::cmp::Ordering::Greater => ib += 1,
-            std::cmp::Ordering::Equal => {
-                for &i1 in &a[ia].1 {
-                    let i1 = i1 as usize;
-                    if !free(f1, i1) {
+    for (na, nb) in common_nodes(a, b) {
+        for &i1 in na {
+            let i1 = i1 as usize;
+            if !free(f1, i1) {
+                continue;
+            }
+            let stereo1 = f1.u_right[i1] >= 0.0;
+            let mut best = (TH_LOW + 1, None);
+            for &i2 in nb {
+                let i2 = i2 as usize;
+                if taken2[i2] || !free(f2, i2) {
+                    continue;
+                }
+                let d = hamming(&f1.descriptors[i1], &f2.descriptors[i2]);
+                if d > TH_LOW || d > best.0 {
+                    continue;
+                }
+                let stereo2 = f2.u_right[i2] >= 0.0;
+                if let (false, false, Some((eu, ev))) = (stereo1, stereo2, epipole) {
+                    let k2 = &f2.keys[i2];
+                    let (du, dv) = (eu - f64::from(k2.u), ev - f64::from(k2.v));
+                    if du * du + dv * dv < 100.0 * camera.scale_factors[usize::from(k2.octave)] {
                         continue;
                     }
-                    let stereo1 = f1.u_right[i1] >= 0.0;
-                    let mut best = (TH_LOW + 1, None);
-                    for &i2 in &b[ib].1 {
-                        let i2 = i2 as usize;
-                        if taken2[i2] || !free(f2, i2) {
-                            continue;
-                        }
-                        let d = hamming(&f1.descriptors[i1], &f2.descriptors[i2]);
-                        if d > TH_LOW || d > best.0 {
-                            continue;
-                        }
-                        let stereo2 = f2.u_right[i2] >= 0.0;
-                        if let (false, false, Some((eu, ev))) = (stereo1, stereo2, epipole) {
-                            let k2 = &f2.keys[i2];
-                            let (du, dv) = (eu - f64::from(k2.u), ev - f64::from(k2.v));
-                            if du * du + dv * dv
-                                < 100.0 * camera.scale_factors[usize::from(k2.octave)]
-                            {
-                                continue;
-                            }
-                        }
-                        if near_epipolar_line(&f12, camera, f1, i1, f2, i2) {
-                            best = (d, Some(i2));
-                        }
-                    }
-                    if let (_, Some(i2)) = best {
-                        taken2[i2] = true;
-                        rotations
-                            .push((pairs.len(), f1.keys[i1].angle_deg - f2.keys[i2].angle_deg));
-                        pairs.push((i1, i2));
-                    }
                 }
-                ia += 1;
-                ib += 1;
+                if near_epipolar_line(&f12, camera, f1, i1, f2, i2) {
+                    best = (d, Some(i2));
+                }
+            }
+            if let (_, Some(i2)) = best {
+                taken2[i2] = true;
+                rotations.push((pairs.len(), f1.keys[i1].angle_deg - f2.keys[i2].angle_deg));
+                pairs.push((i1, i2));
             }
         }
     }
