@@ -150,17 +150,7 @@ fn search_in_neighbours(
         let pose = map.keyframes[t].pose();
         fused += matcher::fuse(map, camera, t, &pose, &own, 3.0);
     }
-    let mut theirs = Vec::new();
-    let mut seen = BTreeSet::new();
-    for &t in &targets {
-        for p in map.keyframes[t].frame.points.iter().flatten() {
-            if let Some(p) = map.resolve(*p) {
-                if seen.insert(p) {
-                    theirs.push(p);
-                }
-            }
-        }
-    }
+    let theirs = map.points_of(&targets);
     let pose = map.keyframes[kf].pose();
     fused += matcher::fuse(map, camera, kf, &pose, &theirs, 3.0);
     let own: Vec<usize> = map.keyframes[kf]

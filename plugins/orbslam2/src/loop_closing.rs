@@ -349,17 +349,7 @@ fn verify(
             .into_iter()
             .filter(|&k| !map.keyframes[k].bad),
     );
-    let mut loop_points = Vec::new();
-    let mut seen = BTreeSet::new();
-    for k in &loop_kfs {
-        for p in map.keyframes[*k].frame.points.iter().flatten() {
-            if let Some(p) = map.resolve(*p) {
-                if seen.insert(p) {
-                    loop_points.push(p);
-                }
-            }
-        }
-    }
+    let loop_points = map.points_of(&loop_kfs);
     let mut probe = f1.clone();
     probe.matches.iter_mut().for_each(|m| *m = None);
     for (&i, &p) in &loop_matches {

@@ -129,6 +129,17 @@ impl Map {
         None
     }
 
+    /// The live points the keyframes see, each once, in the order first met.
+    pub fn points_of(&self, keyframes: &[usize]) -> Vec<usize> {
+        let mut seen = BTreeSet::new();
+        keyframes
+            .iter()
+            .flat_map(|&kf| self.keyframes[kf].frame.points.iter().flatten())
+            .filter_map(|&p| self.resolve(p))
+            .filter(|&p| seen.insert(p))
+            .collect()
+    }
+
     /// Adds a keyframe made from a frame; its points gain the observations.
     pub fn add_keyframe(&mut self, frame: Frame) -> usize {
         let id = self.keyframes.len();

@@ -363,19 +363,8 @@ impl Tracking {
         }
         local.truncate(max_kfs);
         self.reference_kf = Some(best);
-        let mut points = BTreeSet::new();
-        let mut ordered_points = Vec::new();
-        for &kf in &local {
-            for p in map.keyframes[kf].frame.points.iter().flatten() {
-                if let Some(p) = map.resolve(*p) {
-                    if points.insert(p) {
-                        ordered_points.push(p);
-                    }
-                }
-            }
-        }
+        self.local_points = map.points_of(&local);
         self.local_kfs = local;
-        self.local_points = ordered_points;
     }
 
     fn track_local_map(&mut self, frame: &mut Frame, map: &mut Map, ctx: &Context<'_>) -> bool {
