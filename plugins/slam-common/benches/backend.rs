@@ -119,6 +119,7 @@ fn config() -> BackendConfig {
         name: "factrs".into(),
         window: 20,
         max_iterations: 10,
+        ..BackendConfig::default()
     }
 }
 

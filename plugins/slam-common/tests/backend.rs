@@ -14,13 +14,41 @@ use slam_common::backend::{
 const G: f64 = 9.80511;
 
 fn backend(window: usize, max_iterations: usize) -> Box<dyn Backend> {
+    backend_named("factrs", window, max_iterations)
+}
+
+fn backend_named(name: &str, window: usize, max_iterations: usize) -> Box<dyn Backend> {
     from_config(&BackendConfig {
-        name: "factrs".into(),
+        name: name.into(),
         window,
         max_iterations,
+        ..BackendConfig::default()
     })
-    .expect("factrs backend")
+    .unwrap_or_else(|e| panic!("{name} backend: {e}"))
 }
+
+/// The behaviours every backend must have, run on each: `mod factrs { #[test] fn … }`.
+macro_rules! on_every_backend {
+    ($($test:ident),* $(,)?) => {
+        mod factrs {
+            $(#[test] fn $test() { super::$test("factrs") })*
+        }
+        mod isam2 {
+            $(#[test] fn $test() { super::$test("isam2") })*
+        }
+    };
+}
+
+on_every_backend!(
+    two_pose_graph_reaches_the_analytic_optimum,
+    factor_error_counts_sigmas_in_the_body_frame_rotation_first,
+    vineyard_loop_closures_beat_dead_reckoning,
+    imu_at_rest_reads_plus_g_and_stays_put,
+    imu_chain_recovers_trajectory_and_bias,
+    imu_factor_covariance_matches_the_noise_densities,
+    robust_kernel_ignores_a_gross_outlier_loop_and_removal_restores,
+    bad_input_is_an_error_not_a_panic,
+);
 
 fn sigmas(rot: f64, trans: f64) -> Vector6<f64> {
     Vector6::new(rot, rot, rot, trans, trans, trans)
@@ -118,11 +146,10 @@ fn odometry_chain(
     dead
 }
 
-#[test]
-fn two_pose_graph_reaches_the_analytic_optimum() {
+fn two_pose_graph_reaches_the_analytic_optimum(name: &str) {
     // Guards the sigma order (rotation first), the Between direction and whitening: the
     // problem is linear in x (no rotation anywhere), so its optimum is a weighted mean.
-    let mut b = backend(10, 20);
+    let mut b = backend_named(name, 10, 20);
     b.insert(Var::Pose(0), Value::Pose(iso(0.3, 0.0, 0.0, 0.0, 0.0, 0.0)))
         .expect("insert");
     b.insert(Var::Pose(1), Value::Pose(iso(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)))
@@ -161,11 +188,10 @@ fn two_pose_graph_reaches_the_analytic_optimum() {
     assert!((x1 - c).abs() < 1e-6, "x1 = {x1}, expected {c}");
 }
 
-#[test]
-fn factor_error_counts_sigmas_in_the_body_frame_rotation_first() {
+fn factor_error_counts_sigmas_in_the_body_frame_rotation_first(name: &str) {
     // Guards the conversion to factrs: a pose off by 2σ along its own x axis, and one
     // rotated by 3σ about its z axis, must read as 2 and 3 sigmas.
-    let mut b = backend(10, 10);
+    let mut b = backend_named(name, 10, 10);
     let start = iso(1.0, 2.0, 0.5, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
     b.insert(Var::Pose(0), Value::Pose(start)).expect("insert");
     // 2σ = 0.2 m along the body's x, which is the world's y at this heading.
@@ -202,15 +228,14 @@ fn factor_error_counts_sigmas_in_the_body_frame_rotation_first() {
     );
 }
 
-#[test]
-fn vineyard_loop_closures_beat_dead_reckoning() {
+fn vineyard_loop_closures_beat_dead_reckoning(name: &str) {
     // Guards the pose-graph solve and its noise model: noisy odometry around two rows,
     // closures across the rows every 2 m (the lidar sees the next row) and at the
     // headland; the optimum must be far closer to the truth than dead reckoning, and its
     // χ² must be what the noise model predicts (right sigmas, right whitening).
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let truth = lap(18, 3);
-    let mut b = backend(10, 30);
+    let mut b = backend_named(name, 10, 30);
     let dead = odometry_chain(b.as_mut(), &truth, &mut rng, (0.01, 0.05));
     let n = truth.len();
     let mut closures = vec![(n - 1, 0)];
@@ -301,11 +326,10 @@ fn imu_samples(t0: f64, t1: f64, rate_hz: f64, bias: &ImuBias) -> Vec<ImuSample>
         .collect()
 }
 
-#[test]
-fn imu_at_rest_reads_plus_g_and_stays_put() {
+fn imu_at_rest_reads_plus_g_and_stays_put(name: &str) {
     // Guards the gravity sign: a level IMU at rest reads +g along its z; factrs's own
     // examples use the opposite sign, which would make this keyframe fall at 2g.
-    let mut b = backend(10, 20);
+    let mut b = backend_named(name, 10, 20);
     let noise = ImuNoise::default();
     for k in 0..2 {
         b.insert(Var::Pose(k), Value::Pose(Isometry3::identity()))
@@ -360,8 +384,7 @@ fn imu_at_rest_reads_plus_g_and_stays_put() {
     );
 }
 
-#[test]
-fn imu_chain_recovers_trajectory_and_bias() {
+fn imu_chain_recovers_trajectory_and_bias(name: &str) {
     // Guards preintegration end to end (gravity, frames, bias Jacobians, noise scaling):
     // exact 200 Hz samples of a smooth 3D motion with a constant bias, keyframes every
     // second tied by IMU factors, pose fixes (as from lidar odometry) at each keyframe,
@@ -372,7 +395,7 @@ fn imu_chain_recovers_trajectory_and_bias() {
     };
     let noise = ImuNoise::default();
     let keyframes = 12;
-    let mut b = backend(30, 30);
+    let mut b = backend_named(name, 30, 30);
     for k in 0..keyframes {
         let t = k as f64;
         let guess = Motion::pose(t) * Translation3::new(0.3, -0.2, 0.1);
@@ -444,8 +467,7 @@ fn imu_chain_recovers_trajectory_and_bias() {
     );
 }
 
-#[test]
-fn imu_factor_covariance_matches_the_noise_densities() {
+fn imu_factor_covariance_matches_the_noise_densities(name: &str) {
     // Guards the mapping of continuous noise densities onto factrs's per-sample
     // covariances (and the workaround for its gyroscope term): with white noise of the
     // stated densities on every sample and the true states, each factor's squared
@@ -466,7 +488,7 @@ fn imu_factor_covariance_matches_the_noise_densities() {
         white(noise.accel_noise_density),
         white(noise.gyro_noise_density),
     );
-    let mut b = backend(10, 10);
+    let mut b = backend_named(name, 10, 10);
     let factors = 60;
     for k in 0..=factors {
         let t = k as f64;
@@ -503,8 +525,7 @@ fn imu_factor_covariance_matches_the_noise_densities() {
     );
 }
 
-#[test]
-fn robust_kernel_ignores_a_gross_outlier_loop_and_removal_restores() {
+fn robust_kernel_ignores_a_gross_outlier_loop_and_removal_restores(name: &str) {
     // Guards the robust kernels, factor_error and remove: a loop closure claiming pose 30
     // is 6 m to the side of where odometry puts it. With a Cauchy kernel the trajectory
     // barely moves; without one it is dragged; removing the factor restores the answer.
@@ -521,7 +542,7 @@ fn robust_kernel_ignores_a_gross_outlier_loop_and_removal_restores() {
     };
     let solve = |extra: Option<Robust>| {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let mut b = backend(10, 50);
+        let mut b = backend_named(name, 10, 50);
         odometry_chain(b.as_mut(), &truth, &mut rng, (0.005, 0.02));
         let id = extra.map(|r| b.add(outlier(r)).expect("outlier"));
         b.update(Scope::Full).expect("update");
@@ -669,11 +690,10 @@ fn unknown_backend_name_is_an_error_naming_it() {
     );
 }
 
-#[test]
-fn bad_input_is_an_error_not_a_panic() {
+fn bad_input_is_an_error_not_a_panic(name: &str) {
     // Guards the checks before factrs, which panics on non-positive covariances and on
     // keys it does not know.
-    let mut b = backend(10, 10);
+    let mut b = backend_named(name, 10, 10);
     b.insert(Var::Pose(0), Value::Pose(Isometry3::identity()))
         .expect("insert");
     assert!(matches!(

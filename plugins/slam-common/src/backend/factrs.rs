@@ -65,7 +65,7 @@ fn same_kind(var: Var, value: &Value) -> bool {
     )
 }
 
-fn check_value(var: Var, value: &Value) -> Result<(), BackendError> {
+pub(crate) fn check_value(var: Var, value: &Value) -> Result<(), BackendError> {
     if !same_kind(var, value) {
         return Err(BackendError::Invalid(format!(
             "{var:?} cannot hold {value:?}"

@@ -13,10 +13,12 @@ mod convert;
 mod entry;
 mod factrs;
 mod imu;
+mod isam2;
 mod scope;
 mod solve;
 
 pub use factrs::FactrsBackend;
+pub use isam2::Isam2Backend;
 
 /// Which kind of variable a key names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -163,7 +165,7 @@ pub struct UpdateReport {
 
 #[derive(Debug, thiserror::Error)]
 pub enum BackendError {
-    #[error("unknown backend {0:?} (known: \"factrs\")")]
+    #[error("unknown backend {0:?} (known: \"isam2\", \"gtsam\", \"factrs\")")]
     Unknown(String),
     #[error("factor refers to {0:?}, which was never inserted")]
     MissingVariable(Var),
@@ -213,15 +215,32 @@ pub enum Value {
 }
 
 /// Backend settings from a plugin's configuration (a `[backend]` table).
+///
+/// `name` chooses the implementation: `"isam2"` (native iSAM2 on a Bayes tree), `"gtsam"`
+/// (GTSAM's own ISAM2 through its Python bindings) or `"factrs"` (Levenberg–Marquardt on a
+/// window of recent keyframes). The iSAM2 settings are GTSAM's `ISAM2Params` of the same
+/// meaning and default; `window` applies to factrs only. For the iSAM2 backends
+/// [`Scope::Incremental`] is one iSAM2 update and [`Scope::Full`] an update that
+/// relinearises every variable, repeated until the error stops falling (at most
+/// `max_iterations` times).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BackendConfig {
-    /// Which implementation: "factrs".
+    /// Which implementation: "isam2", "gtsam" or "factrs".
     pub name: String,
-    /// Keyframes the incremental update may move; older ones are held fixed.
+    /// factrs: keyframes the incremental update may move; older ones are held fixed.
     pub window: usize,
-    /// Levenberg–Marquardt iterations per update.
+    /// factrs: Levenberg–Marquardt iterations per update; iSAM2: updates of a full one.
     pub max_iterations: usize,
+    /// iSAM2: a variable is relinearised when its last step exceeds this (any component
+    /// of its tangent vector; GTSAM's `relinearizeThreshold`).
+    pub relinearize_threshold: f64,
+    /// iSAM2: look for variables to relinearise every this many updates
+    /// (`relinearizeSkip`).
+    pub relinearize_skip: usize,
+    /// iSAM2: partial back-substitution stops below this change of a clique's variables
+    /// (`wildfireThreshold`).
+    pub wildfire_threshold: f64,
 }
 
 impl Default for BackendConfig {
@@ -230,6 +249,9 @@ impl Default for BackendConfig {
             name: "factrs".into(),
             window: 20,
             max_iterations: 10,
+            relinearize_threshold: 0.1,
+            relinearize_skip: 10,
+            wildfire_threshold: 0.001,
         }
     }
 }
@@ -241,6 +263,7 @@ pub fn from_config(config: &BackendConfig) -> Result<Box<dyn Backend>, BackendEr
             "backend window must be at least 1 keyframe".to_string(),
         )),
         "factrs" => Ok(Box::new(FactrsBackend::new(config))),
+        "isam2" => Ok(Box::new(Isam2Backend::new(config))),
         other => Err(BackendError::Unknown(other.to_string())),
     }
 }
