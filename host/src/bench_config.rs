@@ -59,6 +59,15 @@ impl PluginEntry {
     }
 }
 
+/// A route limit must be a positive, finite number of seconds; the reason when not.
+pub fn check_max_time(seconds: f64) -> Result<(), &'static str> {
+    if seconds.is_finite() && seconds > 0.0 {
+        Ok(())
+    } else {
+        Err("must be a positive number of seconds")
+    }
+}
+
 fn default_scenarios() -> Vec<String> {
     ["s0", "s1", "s2", "s3"].map(str::to_owned).to_vec()
 }
@@ -95,6 +104,9 @@ pub struct BenchConfig {
     pub memory_limit_mb: u64,
     #[serde(default)]
     pub align: Align,
+    /// Cut every route at this simulated time, seconds (default: whole routes, as the
+    /// paper ran them); `--max-time` overrides it.
+    pub max_time_s: Option<f64>,
     pub plugins: Vec<PluginEntry>,
 }
 
@@ -130,6 +142,9 @@ impl BenchConfig {
                 self.timeout_s
             );
         }
+        if let Some(s) = self.max_time_s {
+            check_max_time(s).map_err(|why| anyhow::anyhow!("max_time_s = {s}: {why}"))?;
+        }
         if self.memory_limit_mb < 64 {
             bail!(
                 "memory_limit_mb = {}: must be at least 64",
@@ -149,5 +164,42 @@ impl BenchConfig {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(head: &str) -> anyhow::Result<BenchConfig> {
+        let dir = tempfile::tempdir()?;
+        let file = dir.path().join("m.toml");
+        std::fs::write(&file, format!("{head}\n[[plugins]]\nname = \"x\"\n"))?;
+        BenchConfig::from_file(&file)
+    }
+
+    #[test]
+    fn max_time_is_optional_and_must_be_positive() {
+        assert_eq!(parse("").expect("no limit").max_time_s, None);
+        assert_eq!(
+            parse("max_time_s = 20").expect("integer").max_time_s,
+            Some(20.0)
+        );
+        assert_eq!(
+            parse("max_time_s = 2.5").expect("float").max_time_s,
+            Some(2.5)
+        );
+        for bad in ["0", "-3.0", "nan", "inf"] {
+            let err = parse(&format!("max_time_s = {bad}"))
+                .expect_err("a non-positive limit is refused")
+                .to_string();
+            assert!(
+                err.contains("m.toml")
+                    && err.contains("max_time_s")
+                    && err.contains("positive")
+                    && !err.contains('\n'),
+                "one line naming the file and the key: {err}"
+            );
+        }
     }
 }

@@ -19,6 +19,10 @@ pub struct BenchArgs {
     /// Runs at once (default: the file's `jobs`, else the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
+    /// Cut every route at this many simulated seconds (overrides the file's `max_time_s`;
+    /// default: whole routes). The table then says the routes were cut.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub max_time: Option<f64>,
 }
 
 /// Runs at once when nobody says: one per core.
@@ -26,7 +30,17 @@ pub fn default_jobs() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }
 
+/// `--max-time` checked: a positive number of seconds, or the error naming the flag.
+pub fn max_time_flag(seconds: Option<f64>) -> anyhow::Result<Option<f64>> {
+    if let Some(s) = seconds {
+        crate::bench_config::check_max_time(s)
+            .map_err(|why| anyhow::anyhow!("--max-time {s}: {why}"))?;
+    }
+    Ok(seconds)
+}
+
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    let max_time_s = max_time_flag(args.max_time)?;
     let cfg = BenchConfig::from_file(&args.file)?;
     let dirs = crate::plugins::search_path(&cfg.plugin_dirs);
     let mut runs = Vec::new();
@@ -74,6 +88,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         memory_limit_mb: cfg.memory_limit_mb,
         alignment: cfg.align.into(),
         dataset: None,
+        max_time_s: max_time_s.or(cfg.max_time_s),
     };
     report(&plan).map(drop)
 }

@@ -38,12 +38,16 @@ pub struct RunArgs {
     /// instead of the live simulator.
     #[arg(long, value_name = "FILE.mcap")]
     pub dataset: Option<PathBuf>,
+    /// Cut the route at this many simulated seconds (default: the whole route).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub max_time: Option<f64>,
     /// More directories to search for plugins.
     #[arg(long = "plugin-dir")]
     pub plugin_dirs: Vec<PathBuf>,
 }
 
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    let max_time_s = crate::cmd::bench::max_time_flag(args.max_time)?;
     let dirs = crate::plugins::search_path(&args.plugin_dirs);
     let path = crate::plugins::resolve(&args.plugin, &dirs)?;
     let params_toml = match &args.plugin_config {
@@ -84,6 +88,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         memory_limit_mb: args.memory_limit_mb,
         alignment: align.into(),
         dataset: args.dataset.clone(),
+        max_time_s,
     };
     let executed = crate::cmd::bench::report(&plan)?;
     // One run: its failure is the command's failure (the results folder is still written).

@@ -8,8 +8,9 @@
 //! `loops_accepted` counts the accepted loop closures, `loops_false` those of them that
 //! ground truth shows false (joining poses more than 1 m apart), and
 //! `loops_unjudged`, present only when not zero, those that could not be judged (no
-//! stamps). A failed run has `status` only. A (scenario, plugin) pair without a run is
-//! absent.
+//! stamps). A failed run has `status` only. A run whose route was cut (`--max-time`) also
+//! has `max_time_s`, the route limit in simulated seconds, so a short-route table is never
+//! mistaken for the paper's. A (scenario, plugin) pair without a run is absent.
 
 use serde::Serialize;
 use serde::ser::SerializeMap as _;
@@ -33,9 +34,13 @@ enum Entry {
         loops_false: Option<usize>,
         #[serde(skip_serializing_if = "Option::is_none")]
         loops_unjudged: Option<usize>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        max_time_s: Option<f64>,
     },
     Failed {
         status: String,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        max_time_s: Option<f64>,
     },
 }
 
@@ -44,6 +49,7 @@ impl Entry {
         if let Some(reason) = &column.failure {
             return Self::Failed {
                 status: format!("failed: {reason}"),
+                max_time_s: column.run.max_time_s,
             };
         }
         let ape = column.run.ape.as_ref();
@@ -60,6 +66,7 @@ impl Entry {
             loops_accepted: column.run.loops.map(|l| l.accepted),
             loops_false: column.run.loops.map(|l| l.accepted_false),
             loops_unjudged: column.run.loops.map(|l| l.unjudged).filter(|&n| n > 0),
+            max_time_s: column.run.max_time_s,
         }
     }
 }

@@ -1,6 +1,7 @@
 //! The table as a LaTeX `tabular` with booktabs rules (`\usepackage{booktabs}`), ready
 //! to `\input` inside a `table` environment: scenarios as `\multicolumn` headers over
-//! their systems, and a footnote line naming the failed runs and why they failed.
+//! their systems, a footnote line naming the failed runs and why they failed, and one
+//! saying the routes were cut when they were (`--max-time`).
 
 use std::fmt::Write as _;
 
@@ -86,6 +87,13 @@ pub(super) fn render(table: &Table) -> String {
             out,
             "\\par\\smallskip{{\\footnotesize Failed runs: {}.\\par}}",
             failures.join("; ")
+        );
+    }
+    if let Some(note) = table.cut_note() {
+        let _ = writeln!(
+            out,
+            "\\par\\smallskip{{\\footnotesize {}\\par}}",
+            escape(&note)
         );
     }
     out

@@ -2,7 +2,8 @@
 //!
 //! GFM has one header row, so the paper's two-level header is emulated: the header row
 //! names each scenario above its first system, and the first body row (`system`) names
-//! the systems. Failed runs are listed with their reasons below the table.
+//! the systems. Failed runs are listed with their reasons below the table, and routes cut
+//! short (`--max-time`) are said to be so.
 
 use std::fmt::Write as _;
 
@@ -71,6 +72,9 @@ pub(super) fn render(table: &Table) -> String {
         }
     }
     let _ = write!(out, "\n{CAPTION}\n");
+    if let Some(note) = table.cut_note() {
+        let _ = write!(out, "\n{note}\n");
+    }
 
     let unjudged: Vec<_> = table.unjudged_loops().collect();
     if !unjudged.is_empty() {

@@ -53,6 +53,9 @@ pub struct RunRecord {
     /// Top view (x, y) of the aligned final estimate, for the overlay plot; empty when
     /// failed.
     pub estimate_xy: Vec<(f64, f64)>,
+    /// The route was cut at this simulated time, seconds (`--max-time`); `None`: the whole
+    /// route, as the paper ran it.
+    pub max_time_s: Option<f64>,
 }
 
 /// Ground truth (x, y) per scenario for the overlay plots.
@@ -77,11 +80,14 @@ pub struct ScenarioTruth {
 ///   failed run shows `failed` in its cells and its reason below the table (Markdown: a
 ///   "Failed runs" list; LaTeX: a footnote line; CSV: a last `status` row). A value that
 ///   is missing although the run is ok shows `n/a`. Accepted loops that could not be
-///   judged (no stamps) are listed below the Markdown table.
+///   judged (no stamps) are listed below the Markdown table. When the routes were cut
+///   (`max_time_s`), a line below the Markdown table and the LaTeX table says so: such a
+///   table is not the paper's.
 /// - `table.json`: `{"<scenario>": {"<plugin>": {"status": "ok" | "failed: <reason>",
 ///   "rmse", "mean", "median", "max", "min", "std", "realtime_factor", "loops_accepted",
 ///   "loops_false"}}}` with full f64 precision (and `"loops_unjudged"` when not zero); a
-///   failed run has only `status` (see `json.rs`).
+///   failed run has only `status` (see `json.rs`). A run on a cut route also has
+///   `"max_time_s"`.
 /// - `plots/<scenario>.png` and `.svg`: ground truth in black under every ok system's
 ///   aligned estimate in the system's colour, and a legend below the plot (colour
 ///   swatches in the PNG, which has no font; swatches and names in the SVG). File names

@@ -209,6 +209,17 @@ impl<'a> Table<'a> {
         })
     }
 
+    /// The line saying the routes were cut short (`max_time_s`; a bench has one limit for
+    /// all its runs), so nobody takes the table for the paper's; `None` when every route
+    /// ran whole.
+    pub(super) fn cut_note(&self) -> Option<String> {
+        let max = self.columns.iter().find_map(|c| c.run.max_time_s)?;
+        Some(format!(
+            "Routes cut at {max} s of simulated time (max_time_s): every run covers its route \
+             up to there only. This is not the paper's table, which runs the full routes."
+        ))
+    }
+
     /// The failed runs in column order: (scenario, plugin, reason on one line).
     pub(super) fn failures(&self) -> impl Iterator<Item = (&'a str, &'a str, &str)> {
         self.columns.iter().filter_map(|c| {

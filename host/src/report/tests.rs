@@ -32,6 +32,7 @@ fn ok(scenario: &str, plugin: &str, base: f64, rtf: f64, dy: f64) -> RunRecord {
             unjudged: 0,
         }),
         estimate_xy: (0..=50).map(|i| (f64::from(i) * 0.5, dy)).collect(),
+        max_time_s: None,
     }
 }
 
@@ -58,6 +59,7 @@ fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
             realtime_factor: None,
             loops: None,
             estimate_xy: Vec::new(),
+            max_time_s: None,
         },
     ];
     let truths = ["s0", "s1"]
@@ -418,4 +420,45 @@ fn duplicate_runs_are_an_error_and_extra_names_get_columns() {
             .contains("two runs of plugin \"lio_sam\" on scenario \"s0\""),
         "expected the error to name the pair, got {err}"
     );
+}
+
+/// A table of cut routes says so in the Markdown and the LaTeX, and every run in
+/// table.json has the limit; a table of whole routes says nothing of it.
+#[test]
+fn cut_routes_are_said_to_be_cut() {
+    let (scenarios, plugins, mut runs, truths) = bench();
+    let whole = tempfile::tempdir().unwrap();
+    let md = write_reports(whole.path(), &scenarios, &plugins, &runs, &truths).unwrap();
+    assert!(
+        !md.contains("max_time_s")
+            && !read(&whole.path().join("table.json")).contains("max_time_s"),
+        "expected no route limit in the reports of whole routes:\n{md}"
+    );
+    for run in &mut runs {
+        run.max_time_s = Some(20.0);
+    }
+    let cut = tempfile::tempdir().unwrap();
+    let md = write_reports(cut.path(), &scenarios, &plugins, &runs, &truths).unwrap();
+    assert!(
+        md.contains("Routes cut at 20 s of simulated time (max_time_s)")
+            && md.contains("not the paper's table"),
+        "expected the Markdown to say the routes were cut:\n{md}"
+    );
+    let tex = read(&cut.path().join("table.tex"));
+    assert!(
+        tex.contains("Routes cut at 20 s of simulated time (max\\_time\\_s)"),
+        "expected the LaTeX to say the routes were cut:\n{tex}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&read(&cut.path().join("table.json"))).unwrap();
+    for (scenario, plugin) in [
+        ("s0", "wheel-odometry"),
+        ("s0", "lio_sam"),
+        ("s1", "lio_sam"),
+    ] {
+        assert_eq!(
+            json[scenario][plugin]["max_time_s"], 20.0,
+            "expected {scenario}/{plugin} to carry the limit: {json}"
+        );
+    }
 }

@@ -23,6 +23,10 @@ pub struct Job {
     /// simulator; the scenario and world still give the rig and the nominal duration.
     #[serde(default)]
     pub dataset: Option<PathBuf>,
+    /// Stop feeding at this simulated time, seconds (`--max-time`, `max_time_s`): ground
+    /// truth and evaluation then cover the route up to there. `None`: the whole route.
+    #[serde(default)]
+    pub max_time_s: Option<f64>,
 }
 
 /// File names inside a run folder.

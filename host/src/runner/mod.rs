@@ -50,6 +50,8 @@ pub struct Plan {
     pub alignment: eval::Alignment,
     /// Feed every run from this recording instead of the live simulator.
     pub dataset: Option<PathBuf>,
+    /// Cut every route at this simulated time, seconds; `None`: whole routes.
+    pub max_time_s: Option<f64>,
 }
 
 /// What came out of a whole matrix.
@@ -142,7 +144,8 @@ fn run_all(
     for s in &plan.scenarios {
         let sim = sim::Simulation::with_world(config, world.clone(), s, plan.seed)?;
         let step = 100_000_000;
-        let xy = (0..=sim.duration_ns() / step)
+        let end_ns = worker::end_ns(sim.duration_ns(), plan.max_time_s)?;
+        let xy = (0..=end_ns / step)
             .map(|k| {
                 let p = sim.trajectory.pose(k * step).translation.vector;
                 (p.x, p.y)
@@ -172,6 +175,7 @@ fn run_all(
             out_dir: std::path::absolute(&dir)?,
             memory_limit_mb: plan.memory_limit_mb,
             dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
+            max_time_s: plan.max_time_s,
         };
         worker::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));
@@ -219,6 +223,7 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
         realtime_factor: None,
         loops: None,
         estimate_xy: Vec::new(),
+        max_time_s: plan.max_time_s,
     };
     let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
     let outcome = supervise::supervise(dir, plan.timeout, plan.memory_limit_mb, &on_progress);
@@ -243,5 +248,6 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
         realtime_factor,
         loops: Some(scored.metrics.loops),
         estimate_xy: scored.estimate_xy,
+        max_time_s: plan.max_time_s,
     }
 }

@@ -54,7 +54,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         .create(&job.params_toml, &rig)
         .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
 
-    let total_ns = sim.duration_ns();
+    let total_ns = end_ns(sim.duration_ns(), job.max_time_s)?;
     let mut groundtruth = Vec::new();
     let mut online = Vec::new();
     let mut timing = Timing::default();
@@ -66,6 +66,10 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         Some(path) => Box::new(crate::dataset::replay_messages(path, sensors)?),
         None => Box::new(sim.stream(sensors)),
     };
+    // The stream is in time order: a route limit cuts it, as `simulate --max-time` does.
+    // Without one the stream is fed whole, as before.
+    let cut = job.max_time_s.is_some();
+    let source = source.take_while(move |m| !cut || m.stamp_ns() <= total_ns);
     std::thread::scope(|scope| -> anyhow::Result<()> {
         let (tx, rx) = sync_channel(AHEAD);
         let producer = scope.spawn(move || {
@@ -118,6 +122,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     }
     write_outputs(&job.out_dir, &groundtruth, &online, &output)?;
     let wall = started.elapsed().as_secs_f64();
+    // The simulated time fed: the route up to its limit.
     let simulated = total_ns as f64 * 1e-9;
     let report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
     write_json(&job.out_dir.join(files::TIMING), &report)?;
@@ -125,8 +130,15 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A pose must be finite with a unit quaternion: an invalid one fails the run, it is
-/// never evaluated.
+/// Where feeding stops, ns: the route's end, or the route limit if that comes first.
+pub(super) fn end_ns(duration_ns: i64, max_time_s: Option<f64>) -> anyhow::Result<i64> {
+    let Some(s) = max_time_s else {
+        return Ok(duration_ns);
+    };
+    crate::bench_config::check_max_time(s).map_err(|why| anyhow!("max_time_s = {s}: {why}"))?;
+    Ok(duration_ns.min((s * 1e9).round() as i64))
+}
+
 /// A simulated lidar point as plugins receive it.
 pub fn plugin_point(p: &sim::sensors::LidarPoint) -> LidarPoint {
     LidarPoint {
@@ -139,6 +151,8 @@ pub fn plugin_point(p: &sim::sensors::LidarPoint) -> LidarPoint {
     }
 }
 
+/// A pose must be finite with a unit quaternion: an invalid one fails the run, it is
+/// never evaluated.
 fn check(pose: &Pose, what: &str) -> anyhow::Result<()> {
     if pose.isometry().is_none() {
         bail!(
@@ -253,6 +267,9 @@ fn write_run_toml(
             })
             .into(),
     );
+    if let Some(s) = job.max_time_s {
+        put("max_time_s", toml::Value::Float(s));
+    }
     put("vinebench_version", env!("CARGO_PKG_VERSION").into());
     put("plugin_api_version", plugin_api::API_VERSION.into());
     let mut p = toml::Table::new();
