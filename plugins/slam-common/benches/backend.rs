@@ -1,4 +1,4 @@
-//! Backend cost: the per-keyframe incremental update at growing graph sizes (must stay
+//! Backend cost, factrs and the native iSAM2 side by side: the per-keyframe incremental update at growing graph sizes (must stay
 //! flat), and a full solve of a 2000-keyframe vineyard graph after loop closures.
 //!
 //! `cargo bench -p vinebench-slam-common --bench backend`
@@ -11,7 +11,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use slam_common::backend::{
-    Backend, BackendConfig, Factor, FactrsBackend, Robust, Scope, Value, Var,
+    Backend, BackendConfig, Factor, FactrsBackend, Isam2Backend, Robust, Scope, Value, Var,
 };
 
 const ROWS: usize = 8;
@@ -116,7 +116,6 @@ impl Sim {
 
 fn config() -> BackendConfig {
     BackendConfig {
-        name: "factrs".into(),
         window: 20,
         max_iterations: 10,
         ..BackendConfig::default()
@@ -124,8 +123,7 @@ fn config() -> BackendConfig {
 }
 
 /// A graph of `n` keyframes built as a plugin would: one incremental update each.
-fn grown(n: usize, sim: &mut Sim) -> FactrsBackend {
-    let mut b = FactrsBackend::new(&config());
+fn grown<B: Backend>(mut b: B, n: usize, sim: &mut Sim) -> B {
     for i in 0..n {
         sim.add_keyframe(&mut b, i);
         b.update(Scope::Incremental).expect("update");
@@ -133,19 +131,28 @@ fn grown(n: usize, sim: &mut Sim) -> FactrsBackend {
     b
 }
 
-fn incremental(c: &mut Criterion) {
-    let mut group = c.benchmark_group("incremental_update");
+/// The update adding keyframe `n` to a graph of keyframes `0..n`: `kind` "odometry" (`n`
+/// not a multiple of 5: one odometry factor) or "loop" (a multiple of 5 past the first
+/// lap: odometry and a closure to the same place one lap earlier).
+fn incremental_on<B: Backend + Clone>(
+    c: &mut Criterion,
+    name: &str,
+    kind: &str,
+    sizes: &[usize],
+    make: impl Fn() -> B,
+) {
+    let mut group = c.benchmark_group(format!("{kind}_update/{name}"));
     group.sample_size(30);
-    for n in [100, 500, 1000, 2000] {
+    for &n in sizes {
         let mut sim = Sim {
             truth: route(n + 1),
             rng: ChaCha8Rng::seed_from_u64(1),
         };
-        let base = grown(n, &mut sim);
+        let base = grown(make(), n, &mut sim);
         let mut probe = base.clone();
         sim.add_keyframe(&mut probe, n);
         let report = probe.update(Scope::Incremental).expect("update");
-        eprintln!("incremental at {n} keyframes: {report:?}");
+        eprintln!("{name} {kind} update at {n} keyframes: {report:?}");
         group.bench_with_input(BenchmarkId::from_parameter(n), &n, |bench, &n| {
             bench.iter_batched(
                 || {
@@ -169,21 +176,39 @@ fn incremental(c: &mut Criterion) {
     group.finish();
 }
 
-fn full(c: &mut Criterion) {
+fn incremental(c: &mut Criterion) {
+    let odometry = [101, 501, 1001, 2001];
+    let loops = [500, 1000, 2000];
+    incremental_on(c, "factrs", "odometry", &odometry, || {
+        FactrsBackend::new(&config())
+    });
+    incremental_on(c, "isam2", "odometry", &odometry, || {
+        Isam2Backend::new(&config())
+    });
+    incremental_on(
+        c,
+        "factrs",
+        "loop",
+        &loops,
+        || FactrsBackend::new(&config()),
+    );
+    incremental_on(c, "isam2", "loop", &loops, || Isam2Backend::new(&config()));
+}
+
+fn full_on<B: Backend + Clone>(c: &mut Criterion, name: &str, mut b: B) {
     let n = 2000;
     let mut sim = Sim {
         truth: route(n),
         rng: ChaCha8Rng::seed_from_u64(1),
     };
     // Dead reckoning plus closures, never optimised: the state after a run of odometry.
-    let mut b = FactrsBackend::new(&config());
     for i in 0..n {
         sim.add_keyframe(&mut b, i);
     }
     let mut probe = b.clone();
     let report = probe.update(Scope::Full).expect("full");
-    eprintln!("full solve of {n} keyframes: {report:?}");
-    let mut group = c.benchmark_group("full_solve");
+    eprintln!("{name} full solve of {n} keyframes: {report:?}");
+    let mut group = c.benchmark_group(format!("full_solve/{name}"));
     group.sample_size(10);
     group.bench_function(BenchmarkId::from_parameter(n), |bench| {
         bench.iter_batched(
@@ -196,6 +221,11 @@ fn full(c: &mut Criterion) {
         )
     });
     group.finish();
+}
+
+fn full(c: &mut Criterion) {
+    full_on(c, "factrs", FactrsBackend::new(&config()));
+    full_on(c, "isam2", Isam2Backend::new(&config()));
 }
 
 criterion_group!(benches, incremental, full);

@@ -54,11 +54,8 @@ const RELATIVE_TOLERANCE: f64 = 1e-6;
 #[derive(Debug, Clone)]
 struct VarState {
     var: Var,
-    dim: usize,
     /// Linearisation point.
     theta: Value,
-    /// Current step from `theta`.
-    delta: DVector<f64>,
     /// Live factors touching it.
     factors: Vec<usize>,
 }
@@ -79,6 +76,10 @@ pub struct Isam2Backend {
     wildfire_threshold: f64,
     max_iterations: usize,
     vars: Vec<VarState>,
+    /// Each variable's current step from its `theta`.
+    delta: Vec<DVector<f64>>,
+    /// Each variable's tangent dimension.
+    dims: Vec<usize>,
     ids: BTreeMap<Var, usize>,
     /// By `FactorId`; `None` once removed.
     factors: Vec<Option<FactorState>>,
@@ -101,6 +102,8 @@ impl Isam2Backend {
             wildfire_threshold: config.wildfire_threshold,
             max_iterations: config.max_iterations.max(1),
             vars: Vec::new(),
+            delta: Vec::new(),
+            dims: Vec::new(),
             ids: BTreeMap::new(),
             factors: Vec::new(),
             new_factors: Vec::new(),
@@ -112,8 +115,7 @@ impl Isam2Backend {
     }
 
     fn estimate(&self, i: usize) -> Value {
-        let v = &self.vars[i];
-        retract(&v.theta, &v.delta)
+        retract(&self.vars[i].theta, &self.delta[i])
     }
 
     fn bias(&self, key: u64) -> Option<ImuBias> {
@@ -130,13 +132,11 @@ impl Isam2Backend {
         // 1. Which variables to relinearise.
         let mut relin: BTreeSet<usize> = self.reset.clone();
         let check = self.relinearize_skip == 0 || self.updates % self.relinearize_skip as u64 == 0;
-        for (i, v) in self.vars.iter().enumerate() {
-            if !self.tree.contains(i) {
-                continue;
-            }
-            let big = v.delta.amax() >= self.relinearize_threshold;
-            if all || (check && big) {
-                relin.insert(i);
+        if all || check {
+            for (i, delta) in self.delta.iter().enumerate() {
+                if self.tree.contains(i) && (all || delta.amax() >= self.relinearize_threshold) {
+                    relin.insert(i);
+                }
             }
         }
         // 2. Variables whose cliques (and ancestors) are re-eliminated.
@@ -217,8 +217,7 @@ impl Isam2Backend {
             inputs.iter().map(|f| f.keys.as_slice()),
             &last,
         );
-        let dims: Vec<usize> = self.vars.iter().map(|v| v.dim).collect();
-        let eliminated = tree::eliminate(&order, &inputs, &dims).map_err(|i| {
+        let eliminated = tree::eliminate(&order, &inputs, &self.dims).map_err(|i| {
             BackendError::Solver(format!(
                 "indeterminate system: {:?} is not constrained (no prior?)",
                 self.vars[i].var
@@ -227,9 +226,8 @@ impl Isam2Backend {
         let error_after = eliminated.leftover;
         // Commit: new points, cached linearisations, the tree.
         for (j, value) in thetas {
-            let v = &mut self.vars[j];
-            v.theta = value;
-            v.delta = DVector::zeros(v.dim);
+            self.vars[j].theta = value;
+            self.delta[j].fill(0.0);
         }
         for (f, l) in linearised {
             if let Some(state) = &mut self.factors[f] {
@@ -243,12 +241,8 @@ impl Isam2Backend {
         self.removed_vars.clear();
         self.reset.clear();
         // 5. Wildfire back-substitution.
-        let mut deltas: Vec<DVector<f64>> = self.vars.iter().map(|v| v.delta.clone()).collect();
         self.tree
-            .back_substitute(&new_cliques, &mut deltas, self.wildfire_threshold);
-        for (v, d) in self.vars.iter_mut().zip(deltas) {
-            v.delta = d;
-        }
+            .back_substitute(&new_cliques, &mut self.delta, self.wildfire_threshold);
         Ok(UpdateReport {
             variables: top.len(),
             factors: gathered.len(),
@@ -272,7 +266,7 @@ impl Isam2Backend {
         let factor = state.entry.build(key, true);
         let linear = factor.linearize(&values);
         let keys: Vec<usize> = linear.keys.iter().map(|k| k.0 as usize).collect();
-        let dims: Vec<usize> = keys.iter().map(|&i| self.vars[i].dim).collect();
+        let dims: Vec<usize> = keys.iter().map(|&i| self.dims[i]).collect();
         let a = DMatrix::from(linear.a.mat().clone_owned());
         let b = DVector::from(linear.b.clone());
         if a.iter().chain(b.iter()).any(|x| !x.is_finite()) {
@@ -339,11 +333,11 @@ impl Backend for Isam2Backend {
         self.ids.insert(var, self.vars.len());
         self.vars.push(VarState {
             var,
-            dim,
             theta: initial,
-            delta: DVector::zeros(dim),
             factors: Vec::new(),
         });
+        self.delta.push(DVector::zeros(dim));
+        self.dims.push(dim);
         Ok(())
     }
 
@@ -420,7 +414,7 @@ impl Backend for Isam2Backend {
             .ok_or(BackendError::MissingVariable(var))?;
         let v = &mut self.vars[i];
         v.theta = value;
-        v.delta = DVector::zeros(v.dim);
+        self.delta[i].fill(0.0);
         for &f in &v.factors {
             if let Some(state) = &mut self.factors[f] {
                 state.linear = None;
