@@ -15,7 +15,9 @@
 //! - [`vocabulary`]: a trained hierarchical vocabulary of binary words (DBoW2, as ORB-SLAM2
 //!   uses it) with tf-idf bag-of-words vectors, the direct index and the L1 score;
 //! - [`scan2d`], [`occupancy`]: planar laser scans, 3-DoF point-to-line ICP with degeneracy
-//!   handling, and a log-odds 2D occupancy grid in the ROS map_server convention.
+//!   handling, and a log-odds 2D occupancy grid in the ROS map_server convention;
+//! - [`posegraph`]: g2o/TORO/City10000 pose-graph files replayed through any backend, with
+//!   GTSAM's graph error and the ATE as yardsticks (the `graph-replay` binary).
 
 pub mod ba;
 pub mod backend;
@@ -26,6 +28,7 @@ pub mod imu;
 pub mod kdtree;
 pub mod lsq;
 pub mod occupancy;
+pub mod posegraph;
 pub mod scan2d;
 pub mod vocabulary;
 pub mod voxel;
