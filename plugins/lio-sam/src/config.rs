@@ -25,7 +25,8 @@ pub struct Config {
     pub loop_closure: LoopConfig,
     pub backend: BackendConfig,
     /// Optional: a CSV file to write every graph update's size and time to
-    /// (`keyframes,full,seconds`), to check that the per-keyframe cost stays flat.
+    /// (`poses,full,seconds`), to check that the per-keyframe cost stays flat; a relative
+    /// path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
 }
 

@@ -4,29 +4,19 @@
 //! loop-closure factors; updated incrementally at every keyframe and in full after a loop
 //! closure. Poses are `world_from_imu`, the frame IMU factors live in.
 
-use std::time::Instant;
-
 use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::backend::{
-    self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
+    self, Backend, BackendConfig, Profiled, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
     Robust, Scope, Value, Var,
 };
 
-/// How long one update took, for the flat-cost check.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct UpdateTiming {
-    pub keyframes: usize,
-    pub seconds: f64,
-    pub full: bool,
-}
-
 #[derive(Debug)]
 pub struct KeyframeGraph {
-    backend: Box<dyn Backend>,
+    /// Every update timed, for the flat-cost check (`profile_csv`).
+    pub backend: Profiled,
     imu_noise: Option<ImuNoise>,
     odometry_sigmas: Vector6<f64>,
     keyframes: usize,
-    pub timings: Vec<UpdateTiming>,
 }
 
 impl KeyframeGraph {
@@ -38,13 +28,12 @@ impl KeyframeGraph {
         sigma_m: f64,
     ) -> Result<Self, BackendError> {
         Ok(Self {
-            backend: backend::from_config(cfg)?,
+            backend: Profiled::new(backend::from_config(cfg)?),
             imu_noise,
             odometry_sigmas: Vector6::new(
                 sigma_rad, sigma_rad, sigma_rad, sigma_m, sigma_m, sigma_m,
             ),
             keyframes: 0,
-            timings: Vec::new(),
         })
     }
 
@@ -139,14 +128,7 @@ impl KeyframeGraph {
     }
 
     fn update(&mut self, scope: Scope) -> Result<(), BackendError> {
-        let start = Instant::now();
-        self.backend.update(scope)?;
-        self.timings.push(UpdateTiming {
-            keyframes: self.len(),
-            seconds: start.elapsed().as_secs_f64(),
-            full: scope == Scope::Full,
-        });
-        Ok(())
+        self.backend.update(scope).map(|_| ())
     }
 
     /// The estimate of keyframe `k`'s `world_from_imu` (`k` below `len()`).

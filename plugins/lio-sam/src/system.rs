@@ -410,11 +410,9 @@ impl SlamSystem for LioSam {
             .map(|p| [p.x as f32, p.y as f32, p.z as f32])
             .collect();
         if let Some(path) = &self.cfg.profile_csv {
-            let mut csv = String::from("keyframes,full,seconds\n");
-            for t in &self.graph.timings {
-                let _ = writeln!(csv, "{},{},{:.6}", t.keyframes, u8::from(t.full), t.seconds);
-            }
-            std::fs::write(path, csv)
+            self.graph
+                .backend
+                .write_csv(path)
                 .map_err(|e| PluginError::new(format!("profile_csv {}: {e}", path.display())))?;
         }
         Ok(SlamOutput {

@@ -42,6 +42,9 @@ pub struct Config {
     /// And the voxel the map cloud is thinned to, m.
     pub map_voxel_m: f64,
     pub backend: BackendConfig,
+    /// Optional: a CSV file to write every graph update's size and time to
+    /// (`poses,full,seconds`); a relative path lands in the run's folder.
+    pub profile_csv: Option<std::path::PathBuf>,
 }
 
 impl Default for Config {
@@ -65,6 +68,7 @@ impl Default for Config {
             map_decimation: 8,
             map_voxel_m: 0.05,
             backend: BackendConfig::default(),
+            profile_csv: None,
         }
     }
 }

@@ -9,7 +9,7 @@
 
 use nalgebra::{Isometry3, Vector6};
 use slam_common::backend::{
-    self, Backend, BackendConfig, BackendError, Factor, FactorId, Robust, Scope, Value, Var,
+    self, Backend, BackendConfig, Profiled, BackendError, Factor, FactorId, Robust, Scope, Value, Var,
 };
 
 /// Standard deviations of a link: rotation (rad) and translation (m).
@@ -60,7 +60,8 @@ pub enum LoopOutcome {
 
 #[derive(Debug)]
 pub struct PoseGraph {
-    backend: Box<dyn Backend>,
+    /// Every update timed (`profile_csv`).
+    pub backend: Profiled,
     links: Vec<Link>,
     nodes: Vec<u64>,
     optimize_max_error: f64,
@@ -69,7 +70,7 @@ pub struct PoseGraph {
 impl PoseGraph {
     pub fn new(cfg: &BackendConfig, optimize_max_error: f64) -> Result<Self, BackendError> {
         Ok(Self {
-            backend: backend::from_config(cfg)?,
+            backend: Profiled::new(backend::from_config(cfg)?),
             links: Vec::new(),
             nodes: Vec::new(),
             optimize_max_error,

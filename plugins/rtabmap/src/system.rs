@@ -625,6 +625,12 @@ impl SlamSystem for Rtabmap {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        if let Some(path) = &self.cfg.profile_csv {
+            self.graph
+                .backend
+                .write_csv(path)
+                .map_err(|e| PluginError::new(format!("profile_csv {}: {e}", path.display())))?;
+        }
         let trajectory = self
             .records
             .iter()

@@ -14,11 +14,13 @@ mod entry;
 mod factrs;
 mod imu;
 mod isam2;
+mod profile;
 mod scope;
 mod solve;
 
 pub use factrs::FactrsBackend;
 pub use isam2::Isam2Backend;
+pub use profile::{Profiled, UpdateTiming};
 
 /// Which kind of variable a key names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
