@@ -158,15 +158,106 @@ fn s4_runs_in_a_bench() {
     assert!(out.join("plots/s4.png").is_file());
 }
 
-/// The paper's matrix file runs as shipped (plugins found by name on the search path): every
-/// system on S0–S3 of the default world, identical plants. Every run succeeds; the
-/// RTAB-Map-style plugin meets the paper's RTAB-Map errors, and of its loop
-/// closures — by appearance or by proximity, among rows that look alike — the host judges
-/// none it accepts false against ground truth (`loops_false` in table.json). The
-/// ORB-SLAM2-style plugin tracks every rendered frame of S0 with a relative pose over 1 s
-/// (0.5 m) within 1 cm and 0.5° RMS of the truth (evo's RPE with a 1 s delta); its loops
-/// are counted and judged, and printed — whether identical rows fool it is the experiment's
-/// answer, not an assertion.
+/// Seconds of each route the paper bench test runs: the machinery and the systems' health,
+/// not the paper's figures.
+const PAPER_TEST_MAX_TIME_S: f64 = 20.0;
+
+/// The last stamp of a TUM file, seconds.
+fn last_stamp(path: &Path) -> f64 {
+    common::read_tum(path).last().expect("poses").0
+}
+
+/// `--max-time` cuts the route: the baseline on s0 with `--max-time 5` is fed the first 5 s
+/// only, so ground truth and estimate end there, run.toml and table.json record the limit,
+/// the real-time factor counts 5 simulated seconds and the table says the route was cut. A
+/// limit that is not a positive number of seconds is one line naming the flag.
+#[test]
+fn max_time_cuts_the_route() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("cut");
+    let o = vinebench(&[
+        "run",
+        "--scenario",
+        "s0",
+        "--plugin",
+        "wheel-odometry",
+        "--max-time",
+        "5",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "run failed: {}", text(&o.stderr));
+    let run = out.join("s0/wheel-odometry");
+    let (gt, estimate) = (
+        last_stamp(&run.join("groundtruth.tum")),
+        last_stamp(&run.join("estimate.tum")),
+    );
+    // Ground truth at 100 Hz from t = 0: its last pose at 5 s, give or take a tick.
+    assert!(
+        (4.98..=5.0).contains(&gt) && estimate <= 5.0,
+        "s0 cut at 5 s: ground truth ends at {gt} s, the estimate at {estimate} s"
+    );
+    let run_toml: toml::Table = std::fs::read_to_string(run.join("run.toml"))
+        .expect("run.toml")
+        .parse()
+        .expect("run.toml is TOML");
+    assert_eq!(
+        run_toml.get("max_time_s").and_then(toml::Value::as_float),
+        Some(5.0),
+        "run.toml records the limit: {run_toml}"
+    );
+    let timing = json(&run.join("timing.json"));
+    let simulated = timing["simulated_s"].as_f64().expect("simulated_s");
+    assert!(
+        (simulated - 5.0).abs() < 1e-9,
+        "the real-time factor counts the 5 s fed: {timing}"
+    );
+    let table = json(&out.join("table.json"));
+    assert_eq!(
+        table["s0"]["wheel-odometry"]["max_time_s"], 5.0,
+        "table.json records the limit: {table}"
+    );
+    assert!(
+        text(&o.stdout).contains("Routes cut at 5 s of simulated time"),
+        "the printed table says the route was cut:\n{}",
+        text(&o.stdout)
+    );
+
+    for bad in ["0", "-1", "nan"] {
+        let out = tmp.path().join(format!("bad{bad}"));
+        let o = vinebench(&[
+            "run",
+            "--scenario",
+            "s0",
+            "--plugin",
+            "wheel-odometry",
+            "--max-time",
+            bad,
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        let err = text(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("--max-time") && err.contains("positive"),
+            "--max-time {bad}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+        assert!(!out.exists(), "no results after --max-time {bad}");
+    }
+}
+
+/// The paper's matrix file runs as shipped (plugins found by name on the search path) on the
+/// first 20 s of S0–S3 (`--max-time 20`): every system on every scenario of the default
+/// world, identical plants. Every run succeeds and the table says the routes were cut; of
+/// the RTAB-Map-style plugin's loop closures — by appearance or by proximity, among rows
+/// that look alike — the host judges none it accepts false against ground truth
+/// (`loops_false` in table.json). The ORB-SLAM2-style plugin tracks every rendered frame of
+/// S0's first 20 s with a relative pose over 1 s (0.5 m) within 1 cm and 0.5° RMS of the
+/// truth (evo's RPE with a 1 s delta); its loops are counted and judged, and printed —
+/// whether identical rows fool it is the experiment's answer, not an assertion. This test
+/// checks the machinery and the systems' health on the first 20 s; the comparison with the
+/// paper's Table 2 needs the full routes and comes from the full bench, `bash
+/// scripts/run.sh`.
 #[test]
 fn paper_bench_prints_the_table_for_s0_to_s3() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -175,6 +266,8 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
     let o = vinebench(&[
         "bench",
         paper.to_str().expect("utf-8"),
+        "--max-time",
+        &PAPER_TEST_MAX_TIME_S.to_string(),
         "--out",
         out.to_str().expect("utf-8"),
     ]);
@@ -187,6 +280,12 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
     for s in ["s0", "s1", "s2", "s3"] {
         assert!(header.contains(s), "table header lacks {s}:\n{stdout}");
     }
+    assert!(
+        stdout.contains(&format!(
+            "Routes cut at {PAPER_TEST_MAX_TIME_S} s of simulated time"
+        )),
+        "the table says the routes were cut:\n{stdout}"
+    );
     let table = json(&out.join("table.json"));
     let labels = [
         "wheel-odometry",
@@ -197,17 +296,17 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
     ];
     for s in ["s0", "s1", "s2", "s3"] {
         for label in labels {
-            assert_eq!(table[s][label]["status"], "ok", "{s} {label}: {}", table[s]);
+            let run = &table[s][label];
+            assert_eq!(run["status"], "ok", "{s} {label}: {}", table[s]);
+            assert_eq!(
+                run["max_time_s"], PAPER_TEST_MAX_TIME_S,
+                "{s} {label}: the route limit is in table.json: {run}"
+            );
         }
     }
-    // Hroob et al. 2021, Table 2: RTAB-Map's ATE RMSE on S0–S3.
-    for (s, paper) in [("s0", 0.09), ("s1", 0.05), ("s2", 0.14), ("s3", 0.07)] {
-        let rmse = table[s]["rtabmap"]["rmse"].as_f64().expect("rmse");
-        assert!(
-            rmse <= paper,
-            "rtabmap {s}: ATE {rmse:.3} m, the paper's {paper} m"
-        );
+    for s in ["s0", "s1", "s2", "s3"] {
         let run = &table[s]["rtabmap"];
+        let rmse = run["rmse"].as_f64().expect("rmse");
         let accepted = run["loops_accepted"].as_u64().expect("loops_accepted");
         assert_eq!(
             run["loops_false"].as_u64(),
@@ -221,7 +320,9 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         let rejected = json(&out.join(s).join("rtabmap").join("metrics.json"))["loops"]["rejected"]
             .as_u64()
             .expect("rejected");
-        eprintln!("rtabmap {s}: ATE {rmse:.3} m, {accepted} loops accepted, {rejected} rejected");
+        eprintln!(
+            "rtabmap {s} (first {PAPER_TEST_MAX_TIME_S} s): ATE {rmse:.3} m, {accepted} loops accepted, {rejected} rejected"
+        );
     }
     let s0 = out.join("s0").join("orbslam2");
     let events = json(&s0.join("events.json"));
@@ -236,7 +337,7 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
     let (rms_m, rms_deg) = (rms(&m), rms(&deg));
     eprintln!(
-        "orbslam2 s0 tracking: {} pairs 1 s apart; translation RMS {:.2} mm (p50 {:.2}, p95 {:.2}, max {:.2}); rotation RMS {:.3} deg (p50 {:.3}, p95 {:.3}, max {:.3}); lost {lost}",
+        "orbslam2 s0 tracking (first {PAPER_TEST_MAX_TIME_S} s): {} pairs 1 s apart; translation RMS {:.2} mm (p50 {:.2}, p95 {:.2}, max {:.2}); rotation RMS {:.3} deg (p50 {:.3}, p95 {:.3}, max {:.3}); lost {lost}",
         errors.len(),
         1e3 * rms_m,
         1e3 * quantile(m.clone(), 0.5),
@@ -247,9 +348,12 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         quantile(deg.clone(), 0.95),
         quantile(deg.clone(), 1.0),
     );
+    // Every frame t with t + 1 s within the cut route starts a pair.
+    let rate_hz = sim::SimConfig::default().sensors.camera.rate_hz;
+    let pairs = ((PAPER_TEST_MAX_TIME_S - 1.0) * rate_hz).floor() as usize + 1;
     assert!(
-        errors.len() > 1000,
-        "orbslam2 s0: only {} pairs tracked",
+        errors.len() * 10 >= pairs * 9,
+        "orbslam2 s0: only {} of {pairs} pairs 1 s apart tracked",
         errors.len()
     );
     assert_eq!(lost, 0, "orbslam2 s0: tracking was lost");
@@ -271,14 +375,8 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         let rejected =
             json(&out.join(s).join("orbslam2").join("metrics.json"))["loops"]["rejected"].as_u64();
         eprintln!(
-            "orbslam2 {s}: ATE {:.3} m (the paper's ORB-SLAM2: {}), {accepted} loops accepted ({false_loops} false), {rejected:?} rejected",
+            "orbslam2 {s} (first {PAPER_TEST_MAX_TIME_S} s): ATE {:.3} m, {accepted} loops accepted ({false_loops} false), {rejected:?} rejected",
             run["rmse"].as_f64().expect("rmse"),
-            match s {
-                "s0" => 0.95,
-                "s1" => 0.96,
-                "s2" => 0.84,
-                _ => 5.22,
-            }
         );
     }
 }
@@ -356,7 +454,8 @@ fn faulty_plugins_cost_their_own_run_only() {
     }
 }
 
-/// A bad matrix file or a missing plugin is one line naming the culprit, and no results.
+/// A bad matrix file (a misspelt key, a route limit that is not positive) or a missing
+/// plugin is one line naming the culprit, and no results.
 #[test]
 fn bad_bench_inputs_fail_cleanly() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -372,6 +471,18 @@ fn bad_bench_inputs_fail_cleanly() {
     );
     assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
     assert!(!out.exists(), "no results after a bad file");
+    let (o, out) = run_bench(
+        tmp.path(),
+        "cut",
+        "max_time_s = -2.0\n[[plugins]]\nname = \"wheel-odometry\"\n",
+    );
+    let err = text(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("cut.toml") && err.contains("max_time_s"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    assert!(!out.exists(), "no results after a bad route limit");
     let (o, out) = run_bench(
         tmp.path(),
         "missing",
