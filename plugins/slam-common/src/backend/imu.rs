@@ -32,7 +32,7 @@ use super::{BackendError, ImuBias, ImuNoise, ImuSample, convert};
 
 /// Position integration noise per sample, m²: covers the Euler scheme's discretisation
 /// error (GTSAM and LIO-SAM use a similar `integrationCovariance`).
-const INTEGRATION_VARIANCE_PER_S: f64 = 1e-8;
+pub(crate) const INTEGRATION_VARIANCE_PER_S: f64 = 1e-8;
 
 /// Preintegrated samples between two keyframes, ready to become a factor at every update
 /// (factrs factors are not `Send`, so the backend keeps this instead).

@@ -12,6 +12,7 @@ use serde::Deserialize;
 mod convert;
 mod entry;
 mod factrs;
+mod gtsam;
 mod imu;
 mod isam2;
 mod profile;
@@ -179,6 +180,10 @@ pub enum BackendError {
     /// non-finite number, an IMU factor without samples, a value of the wrong kind).
     #[error("invalid input: {0}")]
     Invalid(String),
+    /// The backend cannot run on this machine (the "gtsam" backend without its bridge
+    /// library, libpython or the gtsam Python package); the message says what to install.
+    #[error("backend unavailable: {0}")]
+    Unavailable(String),
 }
 
 /// A factor graph that grows keyframe by keyframe.
@@ -265,6 +270,7 @@ pub fn from_config(config: &BackendConfig) -> Result<Box<dyn Backend>, BackendEr
             "backend window must be at least 1 keyframe".to_string(),
         )),
         "factrs" => Ok(Box::new(FactrsBackend::new(config))),
+        "gtsam" => Ok(Box::new(gtsam::GtsamBackend::new(config)?)),
         "isam2" => Ok(Box::new(Isam2Backend::new(config))),
         other => Err(BackendError::Unknown(other.to_string())),
     }
