@@ -13,6 +13,10 @@ command -v python3 >/dev/null 2>&1 || { need_pkg python3; need_pkg python3-pip; 
 need_pkg libopencv-dev
 need_pkg clang
 need_pkg libclang-dev
+# libpython3.11 to link, for pyo3 in plugins/gtsam-backend (the "gtsam" backend's bridge),
+# and Debian's venv module for its GTSAM environment below.
+need_pkg python3-dev
+need_pkg python3-venv
 if ((${#apt_missing[@]})); then
   echo "setup: installing ${apt_missing[*]}" >&2
   export DEBIAN_FRONTEND=noninteractive
@@ -31,18 +35,27 @@ if [ ! -x "$vinebench_venv/bin/python" ]; then
     python3 -m venv "$vinebench_venv"
   fi
 fi
-# Installs a pinned requirements file unless every pin is already installed.
+# Installs a pinned requirements file into a venv (default: the one above) unless every pin
+# is already installed.
 ensure_requirements() {
-  local installed pin
-  installed=$("$vinebench_venv/bin/python" -m pip freeze 2>/dev/null || true)
+  local venv="${2:-$vinebench_venv}" installed pin
+  installed=$("$venv/bin/python" -m pip freeze 2>/dev/null || true)
   for pin in $(grep -v '^#' "$1"); do
     if ! grep -qixF "$pin" <<<"$installed"; then
-      echo "setup: installing $1 into $vinebench_venv" >&2
-      "$vinebench_venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$1"
+      echo "setup: installing $1 into $venv" >&2
+      "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$1"
       return
     fi
   done
 }
 ensure_requirements tests/evo/requirements.txt
 ensure_requirements tests/mcap/requirements.txt
+# GTSAM 4.3's wheel for the "gtsam" backend, in a venv of Debian's own interpreter: the
+# bridge library embeds /usr/lib's libpython3.11, so the packages must be built for it
+# (plugins/gtsam-backend finds this venv, or VINEBENCH_GTSAM_VENV).
+gtsam_venv="${VINEBENCH_GTSAM_VENV:-$PWD/target/gtsam-venv}"
+if [ ! -x "$gtsam_venv/bin/python" ]; then
+  /usr/bin/python3 -m venv "$gtsam_venv"
+fi
+ensure_requirements tests/gtsam/requirements.txt "$gtsam_venv"
 export PATH="$vinebench_venv/bin:$PATH"
