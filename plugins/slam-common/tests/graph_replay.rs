@@ -429,3 +429,56 @@ fn binary_rejects_a_bad_file_with_its_line() {
     assert!(err.contains(":2:"), "{err}");
     std::fs::remove_file(path).ok();
 }
+
+/// GTSAM's own optimum of pose3example (`tests/fixtures/pose3example.gtsam.txt`, made with
+/// GTSAM 4.3.0 by `tests/gtsam/make_fixture.py`): our evaluator gives its error at its
+/// poses, and factrs in batch reaches it within 0.1 %.
+#[test]
+fn factrs_reaches_gtsams_optimum_of_pose3example() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let fixture = std::fs::read_to_string(dir.join("pose3example.gtsam.txt")).unwrap();
+    let header = |name: &str| -> f64 {
+        let prefix = format!("# {name} ");
+        let line = fixture.lines().find(|l| l.starts_with(&prefix)).unwrap();
+        line[prefix.len()..].trim().parse().unwrap()
+    };
+    let (initial, optimum) = (header("initial_error"), header("final_error"));
+    let poses: BTreeMap<u64, Isometry3<f64>> = fixture
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            let q = nalgebra::Quaternion::new(v[7], v[4], v[5], v[6]);
+            let pose = Isometry3::from_parts(
+                Translation3::new(v[1], v[2], v[3]),
+                UnitQuaternion::from_quaternion(q),
+            );
+            (v[0] as u64, pose)
+        })
+        .collect();
+    let file = dir.join("pose3example.txt");
+    let g = slam_common::posegraph::read(&file, Format::Auto).unwrap();
+    let at_optimum = graph_error(&g.factors(), |k| poses.get(&k).copied()).unwrap();
+    assert!(
+        close(at_optimum, optimum, 1e-9 * optimum),
+        "{at_optimum} vs GTSAM's {optimum}"
+    );
+    let at_initial = graph_error(&g.factors(), |k| g.initial_guess().get(&k).copied()).unwrap();
+    assert!(
+        close(at_initial, initial, 1e-9 * initial),
+        "{at_initial} vs GTSAM's {initial}"
+    );
+
+    let v = run(&[
+        file.to_str().unwrap(),
+        "--backend",
+        "factrs",
+        "--batch",
+        "--json",
+    ]);
+    let reached = v["final_error"].as_f64().unwrap();
+    assert!(
+        (reached - optimum).abs() <= 1e-3 * optimum,
+        "factrs {reached} vs GTSAM {optimum}"
+    );
+}
