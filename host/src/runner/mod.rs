@@ -164,15 +164,16 @@ fn run_all(
     let mut dirs = Vec::with_capacity(plan.runs.len());
     let mut progress = Vec::with_capacity(plan.runs.len());
     for run in &plan.runs {
-        let dir = tmp.join(&run.scenario).join(&run.label);
+        let dir = std::path::absolute(tmp.join(&run.scenario).join(&run.label))?;
         std::fs::create_dir_all(&dir)?;
         let job = Job {
             scenario: run.scenario.clone(),
-            world: plan.world.clone(),
+            // Absolute: the worker runs in its run folder (see `supervise`).
+            world: plan.world.as_ref().map(std::path::absolute).transpose()?,
             seed: plan.seed,
-            plugin: run.plugin.clone(),
+            plugin: std::path::absolute(&run.plugin)?,
             params_toml: run.params_toml.clone(),
-            out_dir: std::path::absolute(&dir)?,
+            out_dir: dir.clone(),
             memory_limit_mb: plan.memory_limit_mb,
             dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
             max_time_s: plan.max_time_s,

@@ -13,7 +13,7 @@ use super::job::files;
 /// How often the child is checked on.
 const POLL: Duration = Duration::from_millis(20);
 
-/// Runs the worker on the job file in `run_dir`; `progress(fraction)` is called as it
+/// Runs the worker on the job file in `run_dir` (absolute), in that folder; `progress(fraction)` is called as it
 /// advances. `Err` is the failure reason.
 pub fn supervise(
     run_dir: &Path,
@@ -26,7 +26,10 @@ pub fn supervise(
     let log_path = run_dir.join(files::LOG);
     let log =
         std::fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
+    // The worker runs in its run folder, so a relative output path in a plugin's
+    // parameters (lio-sam's `profile_csv`, say) lands beside the run's other files.
     let mut child = Command::new(exe)
+        .current_dir(run_dir)
         .arg("worker")
         .arg("--job")
         .arg(run_dir.join(files::JOB))
