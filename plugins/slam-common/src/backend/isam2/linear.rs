@@ -72,32 +72,32 @@ impl Conditional {
 pub(crate) struct Indeterminate;
 
 /// Sums `factors` over `keys` (the frontal variable first; every key of every factor must
-/// be among `keys`) into one augmented information matrix.
+/// be among `keys`) into one augmented information matrix, block by block.
 pub(crate) fn combine(keys: &[usize], dims: &[usize], factors: &[&InfoFactor]) -> DMatrix<f64> {
-    let mut offset = Vec::with_capacity(keys.len());
+    let mut offset = Vec::with_capacity(keys.len() + 1);
     let mut n = 0;
     for &d in dims {
         offset.push(n);
         n += d;
     }
-    let position = |k: usize| keys.iter().position(|&x| x == k);
     let mut m = DMatrix::zeros(n + 1, n + 1);
+    // (our offset, its offset, width) of each of the factor's blocks, its last row and
+    // column (g and f) as a block of width 1 mapped onto ours.
+    let mut blocks: Vec<(usize, usize, usize)> = Vec::with_capacity(8);
     for f in factors {
-        // Where each of the factor's rows goes, with its own last row mapped to ours.
-        let mut map = Vec::with_capacity(f.aug.nrows());
+        blocks.clear();
+        let mut at = 0;
         for (&k, &d) in f.keys.iter().zip(&f.dims) {
-            let at = position(k).map_or(usize::MAX, |i| offset[i]);
-            map.extend(at..at.saturating_add(d));
-        }
-        map.push(n);
-        for (fc, &mc) in map.iter().enumerate() {
-            if mc == usize::MAX {
-                continue;
+            if let Some(i) = keys.iter().position(|&x| x == k) {
+                blocks.push((offset[i], at, d));
             }
-            for (fr, &mr) in map.iter().enumerate() {
-                if mr != usize::MAX {
-                    m[(mr, mc)] += f.aug[(fr, fc)];
-                }
+            at += d;
+        }
+        blocks.push((n, at, 1));
+        for &(mc, fc, wc) in &blocks {
+            for &(mr, fr, wr) in &blocks {
+                let mut target = m.view_mut((mr, mc), (wr, wc));
+                target += f.aug.view((fr, fc), (wr, wc));
             }
         }
     }
@@ -106,30 +106,47 @@ pub(crate) fn combine(keys: &[usize], dims: &[usize], factors: &[&InfoFactor]) -
 
 /// Eliminates the first `d` dimensions of an augmented information matrix: the
 /// conditional on them and the marginal (Schur complement) on the rest, in augmented form.
+/// `m` is consumed: the Schur complement is formed in place.
 pub(crate) fn eliminate(
-    m: &DMatrix<f64>,
+    mut m: DMatrix<f64>,
     d: usize,
 ) -> Result<(Conditional, DMatrix<f64>), Indeterminate> {
     let n = m.nrows();
+    let rest = n - d;
     let chol = m
         .view((0, 0), (d, d))
         .clone_owned()
         .cholesky()
         .ok_or(Indeterminate)?;
     let l = chol.l();
-    // X = L⁻¹·[H_vs g_v]: the conditional's S and d in one triangular solve.
-    let x = l
-        .solve_lower_triangular(&m.view((0, d), (d, n - d)).clone_owned())
-        .ok_or(Indeterminate)?;
-    let mut marginal = m.view((d, d), (n - d, n - d)).clone_owned();
-    marginal.gemm_tr(-1.0, &x, &x, 1.0);
-    let sep = n - d - 1;
+    // X = L⁻¹·[H_vs g_v], in place: the conditional's S and d in one triangular solve.
+    if !l.solve_lower_triangular_mut(&mut m.view_mut((0, d), (d, rest))) {
+        return Err(Indeterminate);
+    }
+    let x = copy_block(&m, 0, d, d, rest);
+    // Schur complement H_ss − XᵀX on the trailing block (a blocked product).
+    let xt = x.transpose();
+    m.view_mut((d, d), (rest, rest)).gemm(-1.0, &xt, &x, 1.0);
+    let marginal = copy_block(&m, d, d, rest, rest);
+    let sep = rest - 1;
     let conditional = Conditional {
         r: l.transpose(),
         s: x.columns(0, sep).clone_owned(),
         d: x.column(sep).clone_owned(),
     };
     Ok((conditional, marginal))
+}
+
+/// The `rows × cols` block of `m` at (`row`, `col`), copied a column (a contiguous run of
+/// column-major storage) at a time.
+fn copy_block(m: &DMatrix<f64>, row: usize, col: usize, rows: usize, cols: usize) -> DMatrix<f64> {
+    let stride = m.nrows();
+    let src = m.as_slice();
+    let mut out = Vec::with_capacity(rows * cols);
+    for c in col..col + cols {
+        out.extend_from_slice(&src[c * stride + row..c * stride + row + rows]);
+    }
+    DMatrix::from_vec(rows, cols, out)
 }
 
 #[cfg(test)]
@@ -154,8 +171,8 @@ mod tests {
         let b = DVector::from_row_slice(&[1.0, -2.0, 0.5, 3.0, 0.1]);
         let f = InfoFactor::from_jacobian(vec![7, 9], vec![2, 2], &a, &b);
         let m = combine(&[7, 9], &[2, 2], &[&f]);
-        let (c1, marginal) = eliminate(&m, 2).expect("first");
-        let (c2, rest) = eliminate(&marginal, 2).expect("second");
+        let (c1, marginal) = eliminate(m, 2).expect("first");
+        let (c2, rest) = eliminate(marginal, 2).expect("second");
         let x2 = c2.solve(&DVector::zeros(0));
         let x1 = c1.solve(&x2);
         let direct = (a.transpose() * &a)

@@ -23,8 +23,7 @@
 //!    is new or one of its separator variables moved by more than `wildfire_threshold`;
 //!    descent stops where nothing moved.
 //!
-//! Cliques have one frontal variable each (the elimination tree): simpler than GTSAM's
-//! supernodes, the same algorithm. [`Scope::Full`] relinearises every variable and
+//! Cliques are fundamental supernodes (module `tree`), as GTSAM's. [`Scope::Full`] relinearises every variable and
 //! re-eliminates the whole graph, repeated while the error falls (Gauss–Newton to
 //! convergence, at most `max_iterations` times). Factors are linearised by factrs
 //! (automatic differentiation of the same residuals the factrs backend uses; robust
@@ -156,8 +155,8 @@ impl Isam2Backend {
             }
             marked.insert(j);
         }
-        let (removed, orphans) = self.tree.top(&marked);
-        let mut top: BTreeSet<usize> = removed.clone();
+        let removed = self.tree.top(&marked);
+        let mut top: BTreeSet<usize> = removed.vars.clone();
         top.extend(
             marked
                 .iter()
@@ -189,7 +188,8 @@ impl Isam2Backend {
             }
         }
         let fresh: BTreeMap<usize, &InfoFactor> = linearised.iter().map(|(f, l)| (*f, l)).collect();
-        let mut inputs: Vec<&InfoFactor> = Vec::with_capacity(gathered.len() + orphans.len());
+        let mut inputs: Vec<&InfoFactor> =
+            Vec::with_capacity(gathered.len() + removed.orphans.len());
         for &f in &gathered {
             match fresh.get(&f) {
                 Some(l) => inputs.push(l),
@@ -203,9 +203,9 @@ impl Isam2Backend {
                 }
             }
         }
-        for &o in &orphans {
-            if let Some(c) = self.tree.clique(o) {
-                inputs.push(&c.marginal);
+        for &o in &removed.orphans {
+            if let Some(m) = self.tree.marginal(o) {
+                inputs.push(m);
             }
         }
         let error_before: f64 = inputs.iter().map(|f| f.constant()).sum();
@@ -234,9 +234,11 @@ impl Isam2Backend {
                 state.linear = Some(l);
             }
         }
-        let new_cliques: BTreeSet<usize> = eliminated.cliques.keys().copied().collect();
-        self.tree
-            .replace_top(&removed, eliminated.cliques, &orphans, &eliminated.position);
+        let new_cliques: BTreeSet<usize> = self
+            .tree
+            .replace_top(&removed, eliminated)
+            .into_iter()
+            .collect();
         self.new_factors.clear();
         self.removed_vars.clear();
         self.reset.clear();

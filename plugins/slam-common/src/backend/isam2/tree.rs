@@ -1,127 +1,163 @@
-//! The Bayes tree: one clique per eliminated variable, holding its Gaussian conditional on
-//! its separator and the marginal factor it passed to its parent when it was eliminated
-//! (Kaess et al., "iSAM2", IJRR 31(2), 2012, §3: the "cached factor" that stands for the
-//! whole subtree when the clique becomes an orphan).
+//! The Bayes tree: cliques of frontal variables, each holding the Gaussian conditional of
+//! its frontal variables on its separator and the marginal factor it passed to its parent
+//! when it was eliminated (Kaess et al., "iSAM2", IJRR 31(2), 2012, §3: the "cached
+//! factor" that stands for the whole subtree when the clique becomes an orphan).
 //!
-//! A clique's parent is the clique of its first-eliminated separator variable, so every
-//! separator lies on the path to the root (the running intersection property).
+//! Elimination groups consecutive variables into one clique when the next variable is
+//! the first of the clique's separator and brings no new variable with it (fundamental
+//! supernodes), so a chain of variables sharing a separator is eliminated from one dense
+//! matrix instead of passing it on variable by variable. A clique's parent is the clique
+//! of its first-eliminated separator variable, so every separator lies on the path to
+//! the root (the running intersection property).
 
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeSet, HashMap};
 
 use nalgebra::DVector;
 
 use super::linear::{self, Conditional, InfoFactor};
 
+const NONE: usize = usize::MAX;
+
 #[derive(Debug, Clone)]
 pub(crate) struct Clique {
+    /// Frontal variables, in elimination order.
+    frontals: Vec<usize>,
     /// Separator variables, in elimination order.
-    pub(crate) sep: Vec<usize>,
-    pub(crate) conditional: Conditional,
+    sep: Vec<usize>,
+    conditional: Conditional,
     /// The factor on `sep` this clique's elimination produced: its whole subtree's
     /// information about the rest of the graph.
     pub(crate) marginal: InfoFactor,
-    parent: Option<usize>,
+    parent: usize,
     children: Vec<usize>,
 }
 
-/// Cliques by frontal variable.
+/// Cliques in an arena, with each variable's clique.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct BayesTree {
     cliques: Vec<Option<Clique>>,
+    free: Vec<usize>,
+    of_var: Vec<usize>,
     roots: BTreeSet<usize>,
 }
 
-/// The result of eliminating a top: its cliques (parents set, children not yet), each
+/// The part of the tree an update removes.
+#[derive(Debug, Default)]
+pub(crate) struct Top {
+    /// Frontal variables of the removed cliques.
+    pub(crate) vars: BTreeSet<usize>,
+    cliques: Vec<usize>,
+    /// Roots of the subtrees left hanging (clique ids).
+    pub(crate) orphans: Vec<usize>,
+}
+
+/// The result of eliminating a top: its cliques (parent given by a variable), each
 /// variable's position in the ordering, and the error no variable explains.
 #[derive(Debug)]
 pub(crate) struct Eliminated {
-    pub(crate) cliques: BTreeMap<usize, Clique>,
-    pub(crate) position: HashMap<usize, usize>,
+    cliques: Vec<(Clique, Option<usize>)>,
+    position: HashMap<usize, usize>,
     pub(crate) leftover: f64,
 }
 
 impl BayesTree {
+    /// Whether the variable has been eliminated into the tree.
     pub(crate) fn contains(&self, v: usize) -> bool {
-        matches!(self.cliques.get(v), Some(Some(_)))
+        self.of_var.get(v).is_some_and(|&c| c != NONE)
     }
 
-    pub(crate) fn clique(&self, v: usize) -> Option<&Clique> {
-        self.cliques.get(v)?.as_ref()
+    fn clique(&self, id: usize) -> Option<&Clique> {
+        self.cliques.get(id)?.as_ref()
     }
 
-    /// The cliques of `marked` variables with all their ancestors, and the subtrees
+    /// An orphan's marginal factor.
+    pub(crate) fn marginal(&self, id: usize) -> Option<&InfoFactor> {
+        self.clique(id).map(|c| &c.marginal)
+    }
+
+    /// The cliques holding `marked` variables with all their ancestors, and the subtrees
     /// hanging below them (their roots, the orphans).
-    pub(crate) fn top(&self, marked: &BTreeSet<usize>) -> (BTreeSet<usize>, Vec<usize>) {
+    pub(crate) fn top(&self, marked: &BTreeSet<usize>) -> Top {
         let mut removed = BTreeSet::new();
         for &v in marked {
-            let mut at = Some(v);
-            while let Some(c) = at {
-                let Some(clique) = self.clique(c) else {
-                    break;
-                };
-                if !removed.insert(c) {
-                    break;
-                }
-                at = clique.parent;
+            let mut at = self.of_var.get(v).copied().unwrap_or(NONE);
+            while at != NONE && removed.insert(at) {
+                at = self.clique(at).map_or(NONE, |c| c.parent);
             }
         }
-        let mut orphans = Vec::new();
+        let mut top = Top::default();
         for &r in &removed {
-            if let Some(clique) = self.clique(r) {
-                orphans.extend(
-                    clique
-                        .children
+            if let Some(c) = self.clique(r) {
+                top.vars.extend(c.frontals.iter().copied());
+                top.orphans.extend(
+                    c.children
                         .iter()
                         .copied()
-                        .filter(|c| !removed.contains(c)),
+                        .filter(|ch| !removed.contains(ch)),
                 );
             }
         }
-        orphans.sort_unstable();
-        (removed, orphans)
+        top.orphans.sort_unstable();
+        top.cliques = removed.into_iter().collect();
+        top
     }
 
-    /// Drops the `removed` cliques, adds the re-eliminated ones, and hangs each orphan
-    /// under the clique of its separator variable eliminated first.
-    pub(crate) fn replace_top(
-        &mut self,
-        removed: &BTreeSet<usize>,
-        new: BTreeMap<usize, Clique>,
-        orphans: &[usize],
-        position: &HashMap<usize, usize>,
-    ) {
-        for &r in removed {
-            if let Some(slot) = self.cliques.get_mut(r) {
-                *slot = None;
+    /// Drops the `top`'s cliques, adds the re-eliminated ones, and hangs each orphan under
+    /// the clique of its separator variable eliminated first; the new cliques' ids.
+    pub(crate) fn replace_top(&mut self, top: &Top, new: Eliminated) -> Vec<usize> {
+        for &r in &top.cliques {
+            if let Some(c) = self.cliques.get_mut(r).and_then(Option::take) {
+                for &v in &c.frontals {
+                    self.of_var[v] = NONE;
+                }
+                self.free.push(r);
             }
             self.roots.remove(&r);
         }
-        let edges: Vec<(usize, Option<usize>)> = new.iter().map(|(&v, c)| (v, c.parent)).collect();
-        for (v, clique) in new {
-            if self.cliques.len() <= v {
-                self.cliques.resize(v + 1, None);
+        let mut ids = Vec::with_capacity(new.cliques.len());
+        let mut parents = Vec::with_capacity(new.cliques.len());
+        for (clique, parent_var) in new.cliques {
+            let id = match self.free.pop() {
+                Some(id) => id,
+                None => {
+                    self.cliques.push(None);
+                    self.cliques.len() - 1
+                }
+            };
+            for &v in &clique.frontals {
+                if self.of_var.len() <= v {
+                    self.of_var.resize(v + 1, NONE);
+                }
+                self.of_var[v] = id;
             }
-            self.cliques[v] = Some(clique);
+            self.cliques[id] = Some(clique);
+            ids.push(id);
+            parents.push(parent_var);
         }
-        for &o in orphans {
-            let parent = self.clique(o).and_then(|c| {
+        // Parents are new cliques too (a separator lies in the top), so resolve them
+        // only now that every new clique has its id.
+        for (&id, parent_var) in ids.iter().zip(parents) {
+            let parent = parent_var.map_or(NONE, |v| self.of_var[v]);
+            self.link(id, parent);
+        }
+        for &o in &top.orphans {
+            let first = self.clique(o).and_then(|c| {
                 c.sep
                     .iter()
                     .copied()
-                    .min_by_key(|s| position.get(s).copied().unwrap_or(usize::MAX))
+                    .min_by_key(|s| new.position.get(s).copied().unwrap_or(NONE))
             });
-            if let Some(Some(c)) = self.cliques.get_mut(o) {
-                c.parent = parent;
-            }
+            let parent = first.map_or(NONE, |v| self.of_var[v]);
             self.link(o, parent);
         }
-        for (v, parent) in edges {
-            self.link(v, parent);
-        }
+        ids
     }
 
-    fn link(&mut self, child: usize, parent: Option<usize>) {
-        match parent.and_then(|p| self.cliques.get_mut(p)?.as_mut()) {
+    fn link(&mut self, child: usize, parent: usize) {
+        if let Some(Some(c)) = self.cliques.get_mut(child) {
+            c.parent = parent;
+        }
+        match self.cliques.get_mut(parent).and_then(Option::as_mut) {
             Some(p) => p.children.push(child),
             None => {
                 self.roots.insert(child);
@@ -139,15 +175,16 @@ impl BayesTree {
     ) {
         let mut changed = vec![false; deltas.len()];
         let mut stack: Vec<usize> = self.roots.iter().rev().copied().collect();
-        while let Some(c) = stack.pop() {
-            let Some(clique) = self.clique(c) else {
+        let mut sep = DVector::zeros(0);
+        while let Some(id) = stack.pop() {
+            let Some(clique) = self.clique(id) else {
                 continue;
             };
-            if !new.contains(&c) && !clique.sep.iter().any(|&s| changed[s]) {
+            if !new.contains(&id) && !clique.sep.iter().any(|&s| changed[s]) {
                 continue;
             }
             let sep_dim: usize = clique.sep.iter().map(|&s| deltas[s].len()).sum();
-            let mut sep = DVector::zeros(sep_dim);
+            sep.resize_vertically_mut(sep_dim, 0.0);
             let mut at = 0;
             for &s in &clique.sep {
                 let d = &deltas[s];
@@ -155,30 +192,34 @@ impl BayesTree {
                 at += d.len();
             }
             let solved = clique.conditional.solve(&sep);
-            let moved = if solved.len() == deltas[c].len() {
-                (&solved - &deltas[c]).amax()
-            } else {
-                f64::INFINITY
-            };
-            if moved >= threshold {
-                changed[c] = true;
+            let mut at = 0;
+            for &f in &clique.frontals {
+                let d = &mut deltas[f];
+                let new_value = solved.rows(at, d.len());
+                let moved = (new_value - &*d).amax();
+                if moved >= threshold || !moved.is_finite() {
+                    changed[f] = true;
+                }
+                d.copy_from(&new_value);
+                at += d.len();
             }
-            deltas[c] = solved;
             stack.extend(clique.children.iter().rev().copied());
         }
     }
 }
 
 /// Eliminates `order` from `inputs` (the linearised factors of the top and the orphans'
-/// marginals; `dims` by variable). On failure, the variable that could not be eliminated.
+/// marginals; `dims` by variable). On failure, a variable that could not be eliminated.
 pub(crate) fn eliminate(
     order: &[usize],
     inputs: &[&InfoFactor],
     dims: &[usize],
 ) -> Result<Eliminated, usize> {
     let position: HashMap<usize, usize> = order.iter().enumerate().map(|(i, &v)| (v, i)).collect();
-    let first = |keys: &[usize]| keys.iter().filter_map(|k| position.get(k)).min().copied();
-    /// A factor waiting for its first variable: an input or a new clique's marginal.
+    let pos = |k: &usize| position.get(k).copied().unwrap_or(NONE);
+    /// A factor waiting for its first variable: an input, or the marginal of a new
+    /// clique (by its index in `cliques`).
+    #[derive(Clone, Copy)]
     enum Pending {
         Input(usize),
         Marginal(usize),
@@ -186,54 +227,86 @@ pub(crate) fn eliminate(
     let mut buckets: Vec<Vec<Pending>> = (0..order.len()).map(|_| Vec::new()).collect();
     let mut leftover = 0.0;
     for (i, f) in inputs.iter().enumerate() {
-        match first(&f.keys) {
-            Some(p) => buckets[p].push(Pending::Input(i)),
-            None => leftover += f.constant(),
+        match f.keys.iter().map(pos).min() {
+            Some(p) if p != NONE => buckets[p].push(Pending::Input(i)),
+            _ => leftover += f.constant(),
         }
     }
-    let mut cliques: BTreeMap<usize, Clique> = BTreeMap::new();
-    for (p, &v) in order.iter().enumerate() {
-        let pending = std::mem::take(&mut buckets[p]);
-        if pending.is_empty() {
-            return Err(v);
+    let mut cliques: Vec<(Clique, Option<usize>)> = Vec::new();
+    let keys_of = |x: &Pending, cliques: &[(Clique, Option<usize>)]| -> Vec<usize> {
+        match *x {
+            Pending::Input(i) => inputs[i].keys.clone(),
+            Pending::Marginal(c) => cliques[c].0.marginal.keys.clone(),
         }
+    };
+    let mut p = 0;
+    while p < order.len() {
+        let mut frontals = vec![order[p]];
+        let mut pending = std::mem::take(&mut buckets[p]);
+        if pending.is_empty() {
+            return Err(order[p]);
+        }
+        let mut keys: BTreeSet<(usize, usize)> = BTreeSet::new();
+        for x in &pending {
+            keys.extend(keys_of(x, &cliques).into_iter().map(|k| (pos(&k), k)));
+        }
+        // Grow the clique while the next variable is its first separator variable and
+        // its own factors bring no variable the clique does not already have.
+        loop {
+            let q = p + frontals.len();
+            let Some(&u) = order.get(q) else { break };
+            let first_sep = keys
+                .iter()
+                .find(|(_, k)| !frontals.contains(k))
+                .map(|&(_, k)| k);
+            if first_sep != Some(u) {
+                break;
+            }
+            let inside = buckets[q].iter().all(|x| {
+                keys_of(x, &cliques)
+                    .iter()
+                    .all(|k| keys.contains(&(pos(k), *k)))
+            });
+            if !inside {
+                break;
+            }
+            frontals.push(u);
+            pending.extend(std::mem::take(&mut buckets[q]));
+        }
+        let all: Vec<usize> = keys.iter().map(|&(_, k)| k).collect();
+        let key_dims: Vec<usize> = all.iter().map(|&k| dims[k]).collect();
         let factors: Vec<&InfoFactor> = pending
             .iter()
-            .filter_map(|x| match x {
-                Pending::Input(i) => Some(inputs[*i]),
-                Pending::Marginal(c) => cliques.get(c).map(|c| &c.marginal),
+            .map(|x| match *x {
+                Pending::Input(i) => inputs[i],
+                Pending::Marginal(c) => &cliques[c].0.marginal,
             })
             .collect();
-        let mut keys: Vec<usize> = factors
-            .iter()
-            .flat_map(|f| f.keys.iter().copied())
-            .collect();
-        keys.sort_unstable_by_key(|k| position.get(k).copied().unwrap_or(usize::MAX));
-        keys.dedup();
-        let key_dims: Vec<usize> = keys.iter().map(|&k| dims[k]).collect();
-        let m = linear::combine(&keys, &key_dims, &factors);
-        let (conditional, aug) = linear::eliminate(&m, key_dims[0]).map_err(|_| v)?;
-        let sep = keys[1..].to_vec();
-        let parent = sep.first().copied();
-        if let Some(&s) = sep.first() {
-            buckets[position[&s]].push(Pending::Marginal(v));
-        } else {
-            leftover += aug[(0, 0)];
+        let m = linear::combine(&all, &key_dims, &factors);
+        let frontal_dim: usize = key_dims[..frontals.len()].iter().sum();
+        let (conditional, aug) = linear::eliminate(m, frontal_dim).map_err(|_| frontals[0])?;
+        let sep = all[frontals.len()..].to_vec();
+        let parent_var = sep.first().copied();
+        match parent_var {
+            Some(s) => buckets[pos(&s)].push(Pending::Marginal(cliques.len())),
+            None => leftover += aug[(0, 0)],
         }
-        cliques.insert(
-            v,
+        p += frontals.len();
+        cliques.push((
             Clique {
                 marginal: InfoFactor {
                     keys: sep.clone(),
-                    dims: key_dims[1..].to_vec(),
+                    dims: key_dims[frontals.len()..].to_vec(),
                     aug,
                 },
+                frontals,
                 sep,
                 conditional,
-                parent,
+                parent: NONE,
                 children: Vec::new(),
             },
-        );
+            parent_var,
+        ));
     }
     Ok(Eliminated {
         cliques,
