@@ -4,8 +4,8 @@
 Visual-Inertial Odometry", IEEE T-RO 33(1), 2017), driven through GTSAM's Python wrapper.
 
 The Rust side (plugins/slam-common/src/backend/gtsam.rs) checks every input (kinds, keys,
-finite numbers, positive sigmas, variables inserted once and before use) and keeps its own
-copy of the estimate; this module only translates requests into GTSAM calls. Requests and
+finite numbers, positive sigmas, variables inserted once and before use) and asks for
+estimates one variable at a time; this module only translates requests into GTSAM calls. Requests and
 replies are little-endian byte strings whose layout is documented in the bridge's FFI crate
 (plugins/gtsam-backend/ffi/src/lib.rs); `Graph.handle` is the single entry point.
 """
@@ -104,6 +104,8 @@ class Graph:
             return self._update(r.u8() != 0)
         if op == ord("e"):
             return self._error(r.u64())
+        if op == ord("v"):
+            return self._value(r.u8(), r.u64())
         raise ValueError("unknown request %r" % chr(op))
 
     # -- requests ----------------------------------------------------------------------
@@ -256,12 +258,14 @@ class Graph:
             variables = self.isam.getLinearizationPoint().size()
             factors = result.getFactorsRecalculated()
         else:
+            # One ISAM2 update and nothing else, as GTSAM's own incremental loops do: no
+            # error evaluation (GTSAM's evaluateNonlinearError is off by default: it costs
+            # a pass over the whole graph) and no estimate (asked for per variable).
             result = self.isam.update(graph, new_values, params)
-            in_scope = self._scope(result)
-            before_values = self._values_for(self._keys_of(in_scope), extra=new_values)
-            before = 2.0 * in_scope.error(before_values)
-            self._take_result(ids, result)
-            after = 2.0 * in_scope.error(self._values_for(self._keys_of(in_scope)))
+            for fid, index in zip(ids, result.getNewFactorsIndices()):
+                self.index[fid] = index
+            self.estimate = None
+            before = after = float("nan")
             iterations = 1
             variables = result.getVariablesReeliminated()
             factors = result.getFactorsRecalculated()
@@ -270,9 +274,24 @@ class Graph:
         self.pending_factors = []
         self.remove_indices = []
         head = struct.pack("<QQQdd", variables, factors, iterations, before, after)
-        return head + self._estimate_bytes()
+        taken_bytes = struct.pack("<Q", len(taken)) + b"".join(
+            struct.pack("<BQ", key >> 56, key & INDEX_MASK) for key in taken
+        )
+        return head + taken_bytes
 
     # -- helpers -----------------------------------------------------------------------
+
+    def _value(self, kind, index):
+        """ISAM2's current estimate of one variable (its linearisation point plus its
+        step), as GTSAM's calculateEstimate(key)."""
+        key = _key(kind, index)
+        if kind == POSE:
+            p = self.isam.calculateEstimatePose3(key)
+            rt = np.concatenate([p.rotation().matrix().reshape(9), p.translation()])
+            return rt.astype("<f8").tobytes()
+        if kind == VEL:
+            return np.asarray(self.isam.calculateEstimateVector(key), dtype="<f8").tobytes()
+        return self.isam.calculateEstimateConstantBias(key).vector().astype("<f8").tobytes()
 
     def _take_result(self, ids, result):
         for fid, index in zip(ids, result.getNewFactorsIndices()):
@@ -282,7 +301,7 @@ class Graph:
     def _full_error(self, old, removed, graph, new_values):
         """2 x GTSAM's error (sum of 1/2 |r|^2, or the kernel's rho) of every live factor
         at the estimate before the update."""
-        values = gtsam.Values(self.estimate)
+        values = gtsam.Values(self._current())
         values.insert(new_values)
         gone = set(removed)
         total = graph.error(values)
@@ -321,36 +340,20 @@ class Graph:
         for key in keys:
             if extra is not None and extra.exists(key):
                 source = extra
-            elif self.estimate.exists(key):
-                source = self.estimate
+            elif self._current().exists(key):
+                source = self._current()
             else:
                 _put(values, key, self.pending_values[key])
                 continue
             _copy(values, source, key)
         return values
 
-    def _estimate_bytes(self):
-        est = self.estimate
-        keys = np.array(est.keys(), dtype=np.uint64)
-        kinds = keys >> np.uint64(56)
-        index = keys & np.uint64(INDEX_MASK)
-        out = []
-        poses = index[kinds == POSE]
-        out.append(struct.pack("<Q", len(poses)))
-        out.append(poses.astype("<u8").tobytes())
-        if len(poses):
-            out.append(gtsam.utilities.extractPose3(est).astype("<f8").tobytes())
-        vels = index[kinds == VEL]
-        out.append(struct.pack("<Q", len(vels)))
-        out.append(vels.astype("<u8").tobytes())
-        if len(vels):
-            out.append(gtsam.utilities.extractVectors(est, "v").astype("<f8").tobytes())
-        bias_keys = keys[kinds == BIAS]
-        out.append(struct.pack("<Q", len(bias_keys)))
-        out.append(index[kinds == BIAS].astype("<u8").tobytes())
-        for key in bias_keys:
-            out.append(est.atConstantBias(int(key)).vector().astype("<f8").tobytes())
-        return b"".join(out)
+    def _current(self):
+        """Every variable's estimate (calculateEstimate), computed once after an update
+        when something needs it."""
+        if self.estimate is None:
+            self.estimate = self.isam.calculateEstimate()
+        return self.estimate
 
 
 def _copy(values, source, key):

@@ -33,8 +33,9 @@
 //! | `i` insert | `u8` kind (`x` pose, `v` velocity, `b` bias), `u64` key, value (7, 3 or 6 `f64`) | empty |
 //! | `a` add | `u64` factor id, `u8` type and its fields (below) | empty |
 //! | `r` remove | `u64` factor id | `u8` 1 if removed, 0 if unknown |
-//! | `u` update | `u8` 1 for a full update, 0 for incremental | report and estimate (below) |
+//! | `u` update | `u8` 1 for a full update, 0 for incremental | report and keys (below) |
 //! | `e` factor error | `u64` factor id | `u8` 1 if known, `f64` whitened residual norm |
+//! | `v` value | `u8` kind, `u64` key | ISAM2's estimate: pose 12 `f64` (rotation matrix row-major, then translation), velocity 3, bias 6 (accelerometer, then gyroscope) |
 //!
 //! Factor types: `p` pose prior (`u64` key, pose, 6 `f64` sigmas rotation then
 //! translation); `v` velocity prior (`u64` key, 3 `f64`, `f64` sigma); `b` bias prior
@@ -46,10 +47,8 @@
 //! angular rate xyz).
 //!
 //! The update's reply: `u64` variables, `u64` factors, `u64` iterations, `f64` error before,
-//! `f64` error after; then the estimate of every variable GTSAM's ISAM2 holds: `u64` n
-//! poses, n `u64` keys, n × 12 `f64` (rotation matrix row-major, then translation: GTSAM's
-//! `utilities.extractPose3`); `u64` n
-//! velocities, n keys, n × 3 `f64`; `u64` n biases, n keys, n × 6 `f64`.
+//! `f64` error after (NaN for an incremental update: not evaluated); then the variables
+//! ISAM2 took in this update: `u64` n, n × (`u8` kind, `u64` key).
 
 // abi_stable's derives expand to `unsafe impl`s (StableAbi, the prefix type's accessors),
 // and [`load`] reads the exported header from the library: the one unsafe block written here.

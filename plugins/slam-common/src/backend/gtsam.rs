@@ -11,8 +11,9 @@
 //! `scripts/setup.sh` makes (`target/gtsam-venv`, or `VINEBENCH_GTSAM_VENV`). What is missing
 //! (the bridge, libpython, the gtsam package) is one [`BackendError::Unavailable`] line.
 //!
-//! This side checks every input (as the factrs backend does), keeps the estimate of every
-//! variable (so [`Backend::value`] is a map lookup) and encodes each call into one request
+//! This side checks every input (as the factrs backend does), keeps every variable's
+//! initial value and the estimates read since the last update, and encodes each call into
+//! one request
 //! of the bridge's byte protocol (`gtsam_ffi`); the bridge's Python half
 //! (`plugins/gtsam-backend/src/bridge.py`) turns requests into GTSAM calls:
 //!
@@ -36,8 +37,10 @@
 //!   with nothing new until the error stops falling, at most `max_iterations` updates;
 //! - `ISAM2Params`: the configuration's `relinearizeThreshold`, `relinearizeSkip` and,
 //!   through `ISAM2GaussNewtonParams`, `wildfireThreshold`; Cholesky, Gauss–Newton;
-//! - the estimate is `calculateEstimate()` after each update; variables no factor uses yet
-//!   are held back from ISAM2 (which refuses them) and keep their initial value;
+//! - an estimate is ISAM2's `calculateEstimate(key)`, read when [`Backend::value`] first
+//!   asks for it after an update (an update does not copy the whole estimate back, which
+//!   would cost a pass over the graph per update); variables no factor uses yet are held
+//!   back from ISAM2 (which refuses them) and keep their initial value;
 //! - [`Backend::factor_error`] is `sqrt(2·error)` of the factor without its kernel at the
 //!   current estimate; [`Backend::remove`] queues the factor's ISAM2 index for the next
 //!   update (or drops it if it has not reached ISAM2 yet);
@@ -46,11 +49,12 @@
 //!
 //! The update report: `variables` = variables ISAM2 re-eliminated (all of them for a full
 //! update), `factors` = factors it relinearised (ISAM2Result's counts), `iterations` =
-//! ISAM2 updates; `error_before`/`error_after` = 2 × GTSAM's nonlinear error (Σ ½‖r‖², the
-//! kernel's ρ for robust factors) of the factors in scope at the estimate before and after:
-//! for a full update every factor, for an incremental one the factors on the variables
-//! ISAM2 marked (those of new and removed factors and those it relinearised).
+//! ISAM2 updates; for a full update `error_before`/`error_after` = 2 × GTSAM's nonlinear
+//! error (Σ ½‖r‖², the kernel's ρ for robust factors) of every factor at the estimate
+//! before and after; an incremental update does not evaluate them (NaN), as GTSAM with its
+//! default `evaluateNonlinearError = false`: it would cost a pass over the graph.
 
+use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -79,8 +83,10 @@ pub struct GtsamBackend {
     handle: u64,
     /// The estimate of every variable, ISAM2's or (not yet in ISAM2) the initial one.
     vars: BTreeMap<Var, Value>,
-    /// Variables ISAM2 holds (those in the last update's estimate).
+    /// Variables ISAM2 holds.
     in_isam: BTreeSet<Var>,
+    /// Estimates fetched since the last update.
+    cache: RefCell<BTreeMap<Var, Value>>,
     factors: BTreeSet<FactorId>,
     next_factor: u64,
 }
@@ -130,6 +136,7 @@ impl GtsamBackend {
             handle,
             vars: BTreeMap::new(),
             in_isam: BTreeSet::new(),
+            cache: RefCell::new(BTreeMap::new()),
             factors: BTreeSet::new(),
             next_factor: 0,
         })
@@ -143,13 +150,14 @@ impl GtsamBackend {
     }
 
     fn bias(&self, key: u64) -> Option<ImuBias> {
-        match self.vars.get(&Var::Bias(key))? {
-            Value::Bias(b) => Some(*b),
+        match self.value(Var::Bias(key))? {
+            Value::Bias(b) => Some(b),
             _ => None,
         }
     }
 
-    /// Reads an update's reply: the report, and the estimate of everything ISAM2 holds.
+    /// Reads an update's reply: the report, and the variables ISAM2 took in this update.
+    /// Estimates are asked for one variable at a time afterwards ([`Backend::value`]).
     fn take_update(&mut self, reply: &[u8]) -> Option<UpdateReport> {
         let mut r = Reader::new(reply);
         let report = UpdateReport {
@@ -159,40 +167,52 @@ impl GtsamBackend {
             error_before: r.f64()?,
             error_after: r.f64()?,
         };
-        let mut estimate = Vec::new();
         let n = r.u64()? as usize;
-        let keys = (0..n).map(|_| r.u64()).collect::<Option<Vec<_>>>()?;
-        for key in keys {
-            let m: [f64; 12] = r.f64s()?;
-            let rot = Matrix3::new(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
-            let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rot));
-            let t = Translation3::new(m[9], m[10], m[11]);
-            estimate.push((Var::Pose(key), Value::Pose(Isometry3::from_parts(t, rot))));
-        }
-        let n = r.u64()? as usize;
-        let keys = (0..n).map(|_| r.u64()).collect::<Option<Vec<_>>>()?;
-        for key in keys {
-            let v: [f64; 3] = r.f64s()?;
-            estimate.push((Var::Velocity(key), Value::Velocity(Vector3::from(v))));
-        }
-        let n = r.u64()? as usize;
-        let keys = (0..n).map(|_| r.u64()).collect::<Option<Vec<_>>>()?;
-        for key in keys {
-            let b: [f64; 6] = r.f64s()?;
-            let bias = ImuBias {
-                accel_mps2: Vector3::new(b[0], b[1], b[2]),
-                gyro_rps: Vector3::new(b[3], b[4], b[5]),
-            };
-            estimate.push((Var::Bias(key), Value::Bias(bias)));
+        let mut taken = Vec::with_capacity(n);
+        for _ in 0..n {
+            let kind = r.u8()?;
+            let key = r.u64()?;
+            taken.push(match kind {
+                b'x' => Var::Pose(key),
+                b'v' => Var::Velocity(key),
+                b'b' => Var::Bias(key),
+                _ => return None,
+            });
         }
         if !r.is_empty() {
             return None;
         }
-        for (var, value) in estimate {
-            self.in_isam.insert(var);
-            self.vars.insert(var, value);
-        }
+        self.in_isam.extend(taken);
+        self.cache.borrow_mut().clear();
         Some(report)
+    }
+
+    /// ISAM2's current estimate of a variable it holds (GTSAM's `calculateEstimate(key)`).
+    fn estimate(&self, var: Var) -> Option<Value> {
+        let (kind, key) = kind_and_key(var);
+        let mut w = Writer::new(b'v');
+        w.u8(kind).u64(key);
+        let reply = self.call(&w).ok()?;
+        let mut r = Reader::new(&reply);
+        let value = match var {
+            Var::Pose(_) => {
+                let m: [f64; 12] = r.f64s()?;
+                let rot = Matrix3::new(m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]);
+                let rot =
+                    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rot));
+                let t = Translation3::new(m[9], m[10], m[11]);
+                Value::Pose(Isometry3::from_parts(t, rot))
+            }
+            Var::Velocity(_) => Value::Velocity(Vector3::from(r.f64s::<3>()?)),
+            Var::Bias(_) => {
+                let b: [f64; 6] = r.f64s()?;
+                Value::Bias(ImuBias {
+                    accel_mps2: Vector3::new(b[0], b[1], b[2]),
+                    gyro_rps: Vector3::new(b[3], b[4], b[5]),
+                })
+            }
+        };
+        r.is_empty().then_some(value)
     }
 }
 
@@ -539,7 +559,15 @@ impl Backend for GtsamBackend {
     }
 
     fn value(&self, var: Var) -> Option<Value> {
-        self.vars.get(&var).copied()
+        if !self.in_isam.contains(&var) {
+            return self.vars.get(&var).copied();
+        }
+        if let Some(v) = self.cache.borrow().get(&var) {
+            return Some(*v);
+        }
+        let v = self.estimate(var)?;
+        self.cache.borrow_mut().insert(var, v);
+        Some(v)
     }
 
     fn set_value(&mut self, var: Var, value: Value) -> Result<(), BackendError> {
