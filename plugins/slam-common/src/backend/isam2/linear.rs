@@ -53,16 +53,24 @@ pub(crate) struct Conditional {
 }
 
 impl Conditional {
-    /// `δ_v` given the separator's values stacked in the conditional's order.
-    pub(crate) fn solve(&self, sep: &DVector<f64>) -> DVector<f64> {
-        let rhs = if sep.is_empty() {
-            self.d.clone()
-        } else {
-            &self.d - &self.s * sep
-        };
-        self.r
-            .solve_upper_triangular(&rhs)
-            .unwrap_or_else(|| DVector::zeros(self.d.len()))
+    /// The frontal variables' values given the separator's, stacked in the conditional's
+    /// order, written into `out` (resized; no allocation once it is large enough).
+    pub(crate) fn solve_into(&self, sep: &DVector<f64>, out: &mut DVector<f64>) {
+        out.resize_vertically_mut(self.d.len(), 0.0);
+        out.copy_from(&self.d);
+        if !sep.is_empty() {
+            out.gemv(-1.0, &self.s, sep, 1.0);
+        }
+        if !self.r.solve_upper_triangular_mut(out) {
+            out.fill(0.0);
+        }
+    }
+
+    #[cfg(test)]
+    fn solve(&self, sep: &DVector<f64>) -> DVector<f64> {
+        let mut out = DVector::zeros(0);
+        self.solve_into(sep, &mut out);
+        out
     }
 }
 

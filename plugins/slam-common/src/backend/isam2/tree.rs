@@ -175,7 +175,7 @@ impl BayesTree {
     ) {
         let mut changed = vec![false; deltas.len()];
         let mut stack: Vec<usize> = self.roots.iter().rev().copied().collect();
-        let mut sep = DVector::zeros(0);
+        let (mut sep, mut solved) = (DVector::zeros(0), DVector::zeros(0));
         while let Some(id) = stack.pop() {
             let Some(clique) = self.clique(id) else {
                 continue;
@@ -191,17 +191,20 @@ impl BayesTree {
                 sep.rows_mut(at, d.len()).copy_from(d);
                 at += d.len();
             }
-            let solved = clique.conditional.solve(&sep);
+            clique.conditional.solve_into(&sep, &mut solved);
             let mut at = 0;
             for &f in &clique.frontals {
                 let d = &mut deltas[f];
-                let new_value = solved.rows(at, d.len());
-                let moved = (new_value - &*d).amax();
+                let len = d.len();
+                let mut moved: f64 = 0.0;
+                for (old, new_value) in d.iter_mut().zip(solved.rows(at, len).iter()) {
+                    moved = moved.max((new_value - *old).abs());
+                    *old = *new_value;
+                }
                 if moved >= threshold || !moved.is_finite() {
                     changed[f] = true;
                 }
-                d.copy_from(&new_value);
-                at += d.len();
+                at += len;
             }
             stack.extend(clique.children.iter().rev().copied());
         }
