@@ -434,7 +434,7 @@ fn binary_rejects_a_bad_file_with_its_line() {
 /// GTSAM 4.3.0 by `tests/gtsam/make_fixture.py`): our evaluator gives its error at its
 /// poses, and factrs in batch reaches it within 0.1 %.
 #[test]
-fn factrs_reaches_gtsams_optimum_of_pose3example() {
+fn native_backends_reach_gtsams_optimum_of_pose3example() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
     let fixture = std::fs::read_to_string(dir.join("pose3example.gtsam.txt")).unwrap();
     let header = |name: &str| -> f64 {
@@ -469,16 +469,27 @@ fn factrs_reaches_gtsams_optimum_of_pose3example() {
         "{at_initial} vs GTSAM's {initial}"
     );
 
-    let v = run(&[
-        file.to_str().unwrap(),
-        "--backend",
-        "factrs",
-        "--batch",
-        "--json",
-    ]);
-    let reached = v["final_error"].as_f64().unwrap();
-    assert!(
-        (reached - optimum).abs() <= 1e-3 * optimum,
-        "factrs {reached} vs GTSAM {optimum}"
-    );
+    // Batch solves of the native backends reach GTSAM's optimum within 0.1 %; iSAM2 replayed
+    // pose by pose lowers the error (it stops short of the optimum by design: variables are
+    // relinearised only past the threshold).
+    for (backend, batch) in [("factrs", true), ("isam2", true), ("isam2", false)] {
+        let mut args = vec![file.to_str().unwrap(), "--backend", backend, "--json"];
+        if batch {
+            args.push("--batch");
+        }
+        let v = run(&args);
+        let reached = v["final_error"].as_f64().unwrap();
+        eprintln!("{backend} batch={batch}: {reached} vs GTSAM's {optimum}");
+        if batch {
+            assert!(
+                (reached - optimum).abs() <= 1e-3 * optimum,
+                "{backend} {reached} vs GTSAM {optimum}"
+            );
+        } else {
+            assert!(
+                reached < initial,
+                "{backend} incremental {reached} from {initial}"
+            );
+        }
+    }
 }
