@@ -6,8 +6,8 @@
 
 use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::backend::{
-    self, Backend, BackendConfig, Profiled, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
-    Robust, Scope, Value, Var,
+    self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
+    Profiled, Robust, Scope, Value, Var,
 };
 
 #[derive(Debug)]

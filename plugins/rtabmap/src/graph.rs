@@ -9,7 +9,8 @@
 
 use nalgebra::{Isometry3, Vector6};
 use slam_common::backend::{
-    self, Backend, BackendConfig, Profiled, BackendError, Factor, FactorId, Robust, Scope, Value, Var,
+    self, Backend, BackendConfig, BackendError, Factor, FactorId, Profiled, Robust, Scope, Value,
+    Var,
 };
 
 /// Standard deviations of a link: rotation (rad) and translation (m).
