@@ -3,9 +3,12 @@
 //!
 //! After a loop closure the whole graph is optimised, and the closure is kept only if no
 //! link is then strained beyond `RGBD/OptimizeMaxError` times its standard deviation
-//! (translation and rotation judged apart); otherwise its factor is removed and every pose
-//! restored to its value before, as RTAB-Map does. A false loop between two identical-looking
-//! rows has to bend many odometry links by metres to be satisfied, which this check sees.
+//! (translation and rotation judged apart); otherwise its factor is removed and the graph
+//! optimised again, which returns every pose to the optimum without the closure (RTAB-Map
+//! restores the poses it saved; re-solving does the same on every backend, including GTSAM's
+//! ISAM2, which cannot overwrite an estimate it holds). A false loop between two
+//! identical-looking rows has to bend many odometry links by metres to be satisfied, which
+//! this check sees.
 
 use nalgebra::{Isometry3, Vector6};
 use slam_common::backend::{
@@ -55,7 +58,9 @@ pub struct Strain {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LoopOutcome {
     Accepted(Strain),
-    /// Rejected by `optimize_max_error`; the graph is as before.
+    /// Rejected by `optimize_max_error`; the closure is removed and the graph re-optimised
+    /// without it: every pose is at the optimum of the graph as it was before the closure
+    /// (where it already was if the last update had converged, to the solver's tolerance).
     Rejected(Strain),
 }
 
@@ -161,11 +166,6 @@ impl PoseGraph {
         from_from_to: Isometry3<f64>,
         sigmas: Sigmas,
     ) -> Result<LoopOutcome, BackendError> {
-        let saved: Vec<(u64, Isometry3<f64>)> = self
-            .nodes
-            .iter()
-            .filter_map(|&id| self.backend.pose(id).map(|p| (id, p)))
-            .collect();
         let factor = self.add_link(from, to, from_from_to, sigmas, Robust::None)?;
         self.links.push(Link {
             from,
@@ -177,11 +177,16 @@ impl PoseGraph {
         self.backend.update(Scope::Full)?;
         let strain = self.worst_link();
         if self.optimize_max_error > 0.0 && strain.ratio > self.optimize_max_error {
-            self.backend.remove(factor);
-            self.links.pop();
-            for (id, pose) in saved {
-                self.backend.set_value(Var::Pose(id), Value::Pose(pose))?;
+            // Backend-neutral restore: without the closure's factor a full optimisation
+            // returns to the optimum of the graph as it was (`set_value` is refused by
+            // the gtsam backend once ISAM2 holds a variable).
+            if !self.backend.remove(factor) {
+                return Err(BackendError::Solver(format!(
+                    "the rejected loop closure's factor {factor:?} could not be removed"
+                )));
             }
+            self.links.pop();
+            self.backend.update(Scope::Full)?;
             return Ok(LoopOutcome::Rejected(strain));
         }
         Ok(LoopOutcome::Accepted(strain))
@@ -266,7 +271,14 @@ mod tests {
         };
         assert!(strain.ratio > 3.0);
         for (i, p) in before.iter().enumerate() {
-            assert_eq!(g.pose(i as u64), Some(*p), "node {i} restored");
+            let q = g.pose(i as u64).expect("pose");
+            let d = p.inverse() * q;
+            assert!(
+                d.translation.vector.norm() < 1e-6 && d.rotation.angle() < 1e-6,
+                "node {i} restored: off by {:.2e} m, {:.2e} rad",
+                d.translation.vector.norm(),
+                d.rotation.angle()
+            );
         }
         assert_eq!(g.loops(), 0);
         // True: node 19 is one step before node 0 (the square closes).
