@@ -45,7 +45,12 @@ impl Default for Config {
             local_mapping: LocalMappingConfig::default(),
             loop_closing: LoopClosingConfig::default(),
             vocabulary: String::new(),
-            backend: BackendConfig::default(),
+            // factrs until this plugin is measured on the others (README, "Factor-graph
+            // backends").
+            backend: BackendConfig {
+                name: "factrs".into(),
+                ..BackendConfig::default()
+            },
         }
     }
 }

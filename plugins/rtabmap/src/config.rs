@@ -67,7 +67,12 @@ impl Default for Config {
             },
             map_decimation: 8,
             map_voxel_m: 0.05,
-            backend: BackendConfig::default(),
+            // factrs until this plugin is measured on the others (README, "Factor-graph
+            // backends").
+            backend: BackendConfig {
+                name: "factrs".into(),
+                ..BackendConfig::default()
+            },
             profile_csv: None,
         }
     }

@@ -681,6 +681,7 @@ fn unknown_backend_name_is_an_error_naming_it() {
         other => panic!("expected Unknown, got {other:?}"),
     }
     let zero = BackendConfig {
+        name: "factrs".into(),
         window: 0,
         ..BackendConfig::default()
     };
