@@ -44,6 +44,7 @@ impl Entry {
         factor: Factor,
         bias: impl Fn(u64) -> Option<super::ImuBias>,
     ) -> Result<Self, BackendError> {
+        check(&factor)?;
         let vars = vars_of(&factor);
         let kind = match factor {
             Factor::Imu {
@@ -52,11 +53,6 @@ impl Entry {
                 samples,
                 noise,
             } => {
-                if from == to {
-                    return Err(BackendError::Invalid(format!(
-                        "IMU factor from keyframe {from} to itself"
-                    )));
-                }
                 let b = bias(from).ok_or(BackendError::MissingVariable(Var::Bias(from)))?;
                 let preint = Preintegrated::new(&samples, &noise, &b)?;
                 Kind::Imu {
@@ -65,10 +61,7 @@ impl Entry {
                     preint: Box::new(preint),
                 }
             }
-            other => {
-                check(&other)?;
-                Kind::Plain(other)
-            }
+            other => Kind::Plain(other),
         };
         Ok(Self { kind, vars })
     }
@@ -157,7 +150,7 @@ fn plain(f: &Factor, key: impl Fn(Var) -> Key, robust: bool) -> FFactor {
     }
 }
 
-fn vars_of(f: &Factor) -> Vec<Var> {
+pub(crate) fn vars_of(f: &Factor) -> Vec<Var> {
     match f {
         Factor::PosePrior { key, .. } => vec![Var::Pose(*key)],
         Factor::VelocityPrior { key, .. } => vec![Var::Velocity(*key)],
@@ -172,7 +165,7 @@ fn vars_of(f: &Factor) -> Vec<Var> {
 
 /// Rejects what factrs would turn into NaN or a panic: non-positive sigmas, non-finite
 /// measurements, kernel widths that are not positive.
-fn check(f: &Factor) -> Result<(), BackendError> {
+pub(crate) fn check(f: &Factor) -> Result<(), BackendError> {
     match f {
         Factor::PosePrior {
             world_from_body,
@@ -220,6 +213,18 @@ fn check(f: &Factor) -> Result<(), BackendError> {
                 }
             }
         }
-        Factor::Imu { .. } => Ok(()),
+        Factor::Imu {
+            from,
+            to,
+            samples,
+            noise,
+        } => {
+            if from == to {
+                return Err(BackendError::Invalid(format!(
+                    "IMU factor from keyframe {from} to itself"
+                )));
+            }
+            super::imu::check(samples, noise)
+        }
     }
 }

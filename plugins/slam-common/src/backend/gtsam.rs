@@ -62,6 +62,7 @@ use std::sync::OnceLock;
 use gtsam_ffi::{BridgeRef, Reader, Writer};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
+use super::entry::{check, vars_of};
 use super::{
     Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, Robust, Scope, UpdateReport,
     Value, Var, convert, imu::INTEGRATION_VARIANCE_PER_S,
@@ -316,105 +317,6 @@ fn value(w: &mut Writer, v: &Value) {
     }
 }
 
-fn vars_of(f: &Factor) -> Vec<Var> {
-    match f {
-        Factor::PosePrior { key, .. } => vec![Var::Pose(*key)],
-        Factor::VelocityPrior { key, .. } => vec![Var::Velocity(*key)],
-        Factor::BiasPrior { key, .. } => vec![Var::Bias(*key)],
-        Factor::Between { from, to, .. } => vec![Var::Pose(*from), Var::Pose(*to)],
-        Factor::Imu { from, to, .. } => [*from, *to]
-            .iter()
-            .flat_map(|&k| [Var::Pose(k), Var::Velocity(k), Var::Bias(k)])
-            .collect(),
-    }
-}
-
-/// Rejects what GTSAM would turn into NaN or an exception: the checks the factrs backend
-/// makes, on the same terms.
-fn check(f: &Factor) -> Result<(), BackendError> {
-    match f {
-        Factor::PosePrior {
-            world_from_body,
-            sigmas,
-            ..
-        } => {
-            convert::check_pose("pose prior", world_from_body)?;
-            convert::check_positive("pose prior sigma", sigmas.as_slice())
-        }
-        Factor::VelocityPrior {
-            velocity_mps,
-            sigma_mps,
-            ..
-        } => {
-            convert::check_finite("velocity prior", velocity_mps.as_slice())?;
-            convert::check_positive("velocity prior sigma", &[*sigma_mps])
-        }
-        Factor::BiasPrior {
-            bias,
-            sigma_accel,
-            sigma_gyro,
-            ..
-        } => {
-            convert::check_value(&Value::Bias(*bias))?;
-            convert::check_positive("bias prior sigma", &[*sigma_accel, *sigma_gyro])
-        }
-        Factor::Between {
-            from,
-            to,
-            from_from_to,
-            sigmas,
-            robust,
-        } => {
-            if from == to {
-                return Err(BackendError::Invalid(format!(
-                    "between factor from pose {from} to itself"
-                )));
-            }
-            convert::check_pose("between measurement", from_from_to)?;
-            convert::check_positive("between sigma", sigmas.as_slice())?;
-            match robust {
-                Robust::None => Ok(()),
-                Robust::Huber(k) | Robust::Cauchy(k) => {
-                    convert::check_positive("robust kernel width", &[*k])
-                }
-            }
-        }
-        Factor::Imu {
-            from,
-            to,
-            samples,
-            noise,
-        } => {
-            if from == to {
-                return Err(BackendError::Invalid(format!(
-                    "IMU factor from keyframe {from} to itself"
-                )));
-            }
-            if samples.is_empty() {
-                return Err(BackendError::Invalid(
-                    "IMU factor without samples".to_string(),
-                ));
-            }
-            convert::check_positive(
-                "IMU noise",
-                &[
-                    noise.accel_noise_density,
-                    noise.gyro_noise_density,
-                    noise.accel_bias_random_walk,
-                    noise.gyro_bias_random_walk,
-                ],
-            )?;
-            convert::check_finite("gravity", &[noise.gravity_mps2])?;
-            for s in samples {
-                convert::check_positive("IMU sample dt_s", &[s.dt_s])?;
-                convert::check_finite("IMU sample", s.accel_mps2.as_slice())?;
-                convert::check_finite("IMU sample", s.gyro_rps.as_slice())?;
-            }
-            Ok(())
-        }
-    }
-}
-
 /// The `a` request for a checked factor whose variables all exist.
 fn encode(id: FactorId, f: &Factor, from_bias: Option<ImuBias>) -> Writer {
     let mut w = Writer::new(b'a');
@@ -523,6 +425,8 @@ impl Backend for GtsamBackend {
     }
 
     fn add(&mut self, factor: Factor) -> Result<FactorId, BackendError> {
+        // The checks the factrs backend makes, on the same terms: what GTSAM would turn
+        // into NaN or an exception.
         check(&factor)?;
         if let Some(missing) = vars_of(&factor)
             .into_iter()

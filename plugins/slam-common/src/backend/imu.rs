@@ -87,7 +87,7 @@ fn covariance(noise: &ImuNoise, dt: f64) -> ImuCovariance {
 
 /// factrs panics on a covariance that is not positive definite; these checks rule that
 /// out (with positive densities and periods every block of it is positive).
-fn check(samples: &[ImuSample], noise: &ImuNoise) -> Result<(), BackendError> {
+pub(crate) fn check(samples: &[ImuSample], noise: &ImuNoise) -> Result<(), BackendError> {
     if samples.is_empty() {
         return Err(BackendError::Invalid(
             "IMU factor without samples".to_string(),
