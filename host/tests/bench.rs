@@ -293,6 +293,8 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         "lio-sam",
         "rtabmap",
         "orbslam2",
+        "staticmapping",
+        "staticmapping-1m",
     ];
     for s in ["s0", "s1", "s2", "s3"] {
         for label in labels {
@@ -323,6 +325,17 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         eprintln!(
             "rtabmap {s} (first {PAPER_TEST_MAX_TIME_S} s): ATE {rmse:.3} m, {accepted} loops accepted, {rejected} rejected"
         );
+    }
+    for s in ["s0", "s1", "s2", "s3"] {
+        for label in ["staticmapping", "staticmapping-1m"] {
+            let run = &table[s][label];
+            eprintln!(
+                "{label} {s} (first {PAPER_TEST_MAX_TIME_S} s): ATE {:.3} m, {} loops accepted, {} judged false",
+                run["rmse"].as_f64().expect("rmse"),
+                run["loops_accepted"],
+                run["loops_false"]
+            );
+        }
     }
     let s0 = out.join("s0").join("orbslam2");
     let events = json(&s0.join("events.json"));

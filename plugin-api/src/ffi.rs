@@ -297,7 +297,11 @@ mod tests {
                 EventKind::LoopClosureAccepted,
                 [2_000_000_000, 500_000_000],
                 "keyframe 20 to 5",
-            ),
+            )
+            .with_relative_pose(&nalgebra::Isometry3::new(
+                nalgebra::Vector3::new(0.5, -3.0, 0.01),
+                nalgebra::Vector3::new(0.0, 0.0, 0.2),
+            )),
             Event::new(2_100_000_000, EventKind::TrackingLost, "no features"),
         ];
         let output = SlamOutput {
@@ -319,6 +323,12 @@ mod tests {
             Some([2_000_000_000, 500_000_000])
         );
         assert_eq!(back.events[1].loop_stamps_ns, None);
+        let pose = back.events[0]
+            .relative_pose()
+            .expect("the relative pose crosses");
+        assert!((pose.translation.vector - nalgebra::Vector3::new(0.5, -3.0, 0.01)).norm() < 1e-12);
+        assert!((pose.rotation.angle() - 0.2).abs() < 1e-12);
+        assert_eq!(back.events[1].relative_pose(), None);
 
         let old = OutputFfi {
             trajectory: RVec::new(),

@@ -75,6 +75,13 @@ pub struct Event {
     /// plugins built before the field existed (their loops are counted, not judged).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loop_stamps_ns: Option<[i64; 2]>,
+    /// A loop closure's measured relative pose `matched_from_current` between the two base
+    /// poses of `loop_stamps_ns`, as `[x, y, z, qx, qy, qz, qw]` (metres, unit quaternion).
+    /// With it the host judges the loop by whether this measurement agrees with ground
+    /// truth, so a loop between two places several metres apart (scan matching across
+    /// a lane) can be true and an aliased one false; without it, by distance alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loop_relative_pose: Option<[f64; 7]>,
 }
 
 impl Event {
@@ -85,6 +92,7 @@ impl Event {
             kind,
             detail: detail.into(),
             loop_stamps_ns: None,
+            loop_relative_pose: None,
         }
     }
 
@@ -102,6 +110,32 @@ impl Event {
             loop_stamps_ns: Some([current_ns, matched_ns]),
             ..Self::new(stamp_ns, kind, detail)
         }
+    }
+
+    /// This loop closure with its measured relative pose `matched_from_current` between the
+    /// base poses at its two stamps.
+    pub fn with_relative_pose(mut self, matched_from_current: &nalgebra::Isometry3<f64>) -> Self {
+        let t = matched_from_current.translation.vector;
+        let q = matched_from_current.rotation.coords;
+        self.loop_relative_pose = Some([t.x, t.y, t.z, q.x, q.y, q.z, q.w]);
+        self
+    }
+
+    /// The measured relative pose `matched_from_current`, if given and valid.
+    pub fn relative_pose(&self) -> Option<nalgebra::Isometry3<f64>> {
+        let [x, y, z, qx, qy, qz, qw] = self.loop_relative_pose?;
+        let q = nalgebra::Quaternion::new(qw, qx, qy, qz);
+        let norm = q.norm();
+        if !(norm.is_finite()
+            && (norm - 1.0).abs() < 1e-6
+            && [x, y, z].iter().all(|v| v.is_finite()))
+        {
+            return None;
+        }
+        Some(nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(x, y, z),
+            nalgebra::UnitQuaternion::new_unchecked(q),
+        ))
     }
 }
 

@@ -13,6 +13,14 @@
 //! such reversed loop false. Either way the distance and the heading difference are
 //! reported with the verdict.
 //!
+//! A loop that carries its measured relative pose (`matched_from_current`, as scan
+//! matching estimated it) is judged by that measurement instead: true when it agrees with
+//! the ground-truth relative pose of the two base poses within
+//! [`LoopCriteria::max_relative_error_m`] and [`LoopCriteria::max_relative_error_rad`]
+//! (0.5 m and 10° by default: below the 1 m spacing of identical plants along a row and the
+//! 3 m between rows, the offsets an aliased match makes). A registration across a lane,
+//! 3 m apart and correct, is then true; one that snapped to the wrong plant is false.
+//!
 //! Ground truth is resampled at each stamp as the association does (linear position,
 //! slerp orientation between the bracketing poses); a stamp more than one mean sampling
 //! period outside the ground truth's time span cannot be judged.
@@ -29,6 +37,11 @@ pub struct LoopCriteria {
     pub max_distance_m: f64,
     /// Largest heading (yaw) difference, radians (inclusive); `None`: any heading.
     pub max_heading_rad: Option<f64>,
+    /// A loop with a measured relative pose: its largest translation error against ground
+    /// truth, metres (inclusive),
+    pub max_relative_error_m: f64,
+    /// and its largest rotation error, radians (inclusive).
+    pub max_relative_error_rad: f64,
 }
 
 impl Default for LoopCriteria {
@@ -37,6 +50,8 @@ impl Default for LoopCriteria {
         Self {
             max_distance_m: 1.0,
             max_heading_rad: None,
+            max_relative_error_m: 0.5,
+            max_relative_error_rad: 10f64.to_radians(),
         }
     }
 }
@@ -58,16 +73,22 @@ pub struct LoopJudgement {
     pub distance_m: f64,
     /// Absolute heading difference, radians, in [0, π].
     pub heading_rad: f64,
-    /// Within the criteria (distance and, if limited, heading).
+    /// The measured relative pose's error against ground truth (translation m, rotation
+    /// rad), when the loop carried one.
+    pub relative_error: Option<(f64, f64)>,
+    /// Within the criteria: the relative pose's error if measured, else the distance and, if
+    /// limited, heading.
     pub true_loop: bool,
 }
 
 /// Judges the loop closure joining the base poses at `stamps_s` (seconds, in either
-/// order) against `groundtruth`. `None` if the ground truth has fewer than two poses or a
+/// order: `[current, matched]` when `measured` is given, `matched_from_current`) against
+/// `groundtruth`. `None` if the ground truth has fewer than two poses or a
 /// stamp lies more than one mean sampling period outside its time span.
 pub fn judge_loop(
     groundtruth: &Trajectory,
     stamps_s: [f64; 2],
+    measured: Option<&nalgebra::Isometry3<f64>>,
     criteria: &LoopCriteria,
 ) -> Option<LoopJudgement> {
     let n = groundtruth.len();
@@ -86,13 +107,26 @@ pub fn judge_loop(
     let distance_m = (a.translation.vector - b.translation.vector).norm();
     let heading = |p: &nalgebra::Isometry3<f64>| p.rotation.euler_angles().2;
     let heading_rad = wrap_angle(heading(&a) - heading(&b)).abs();
+    let relative_error = measured.map(|m| {
+        let error = (b.inverse() * a).inverse() * m;
+        (error.translation.vector.norm(), error.rotation.angle())
+    });
+    let true_loop = match relative_error {
+        Some((m, rad)) => {
+            m <= criteria.max_relative_error_m && rad <= criteria.max_relative_error_rad
+        }
+        None => {
+            distance_m <= criteria.max_distance_m
+                && criteria
+                    .max_heading_rad
+                    .is_none_or(|max| heading_rad <= max)
+        }
+    };
     Some(LoopJudgement {
         distance_m,
         heading_rad,
-        true_loop: distance_m <= criteria.max_distance_m
-            && criteria
-                .max_heading_rad
-                .is_none_or(|max| heading_rad <= max),
+        relative_error,
+        true_loop,
     })
 }
 
@@ -162,8 +196,13 @@ mod tests {
 
     #[test]
     fn distance_and_heading_are_interpolated_between_samples() {
-        let j = judge_loop(&groundtruth(), [2.005, 2.505], &LoopCriteria::same_view())
-            .expect("inside the span");
+        let j = judge_loop(
+            &groundtruth(),
+            [2.005, 2.505],
+            None,
+            &LoopCriteria::same_view(),
+        )
+        .expect("inside the span");
         // 0.5 m along x and 0.05 m up; 0.05 rad of yaw.
         assert!((j.distance_m - 0.5f64.hypot(0.05)).abs() < 1e-9, "{j:?}");
         assert!((j.heading_rad - 0.05).abs() < 1e-9, "{j:?}");
@@ -176,26 +215,29 @@ mod tests {
         let loose = LoopCriteria {
             max_distance_m: 1.0,
             max_heading_rad: Some(1.0),
+            ..LoopCriteria::default()
         };
         // 0.9 m along x, 0.09 m up: 0.9045 m.
-        let near = judge_loop(&gt, [1.0, 1.9], &loose).expect("judged");
+        let near = judge_loop(&gt, [1.0, 1.9], None, &loose).expect("judged");
         assert!(near.true_loop, "{near:?}");
-        let far = judge_loop(&gt, [1.0, 2.1], &loose).expect("judged");
+        let far = judge_loop(&gt, [1.0, 2.1], None, &loose).expect("judged");
         assert!(!far.true_loop && far.distance_m > 1.0, "{far:?}");
         let exactly = LoopCriteria {
             max_distance_m: near.distance_m,
             max_heading_rad: Some(near.heading_rad),
+            ..LoopCriteria::default()
         };
         assert!(
-            judge_loop(&gt, [1.0, 1.9], &exactly)
+            judge_loop(&gt, [1.0, 1.9], None, &exactly)
                 .expect("judged")
                 .true_loop
         );
         let strict_heading = LoopCriteria {
             max_distance_m: 1.0,
             max_heading_rad: Some(0.08),
+            ..LoopCriteria::default()
         };
-        let turned = judge_loop(&gt, [1.0, 1.9], &strict_heading).expect("judged");
+        let turned = judge_loop(&gt, [1.0, 1.9], None, &strict_heading).expect("judged");
         assert!(
             !turned.true_loop && (turned.heading_rad - 0.09).abs() < 1e-9,
             "{turned:?}"
@@ -205,7 +247,7 @@ mod tests {
             ..strict_heading
         };
         assert!(
-            judge_loop(&gt, [1.0, 1.9], &any_heading)
+            judge_loop(&gt, [1.0, 1.9], None, &any_heading)
                 .expect("judged")
                 .true_loop
         );
@@ -215,7 +257,7 @@ mod tests {
     fn heading_wraps_around_pi() {
         let at = |yaw: f64| Isometry3::new(Vector3::zeros(), Vector3::z() * yaw);
         let gt = Trajectory::new(vec![0.0, 1.0], vec![at(3.0), at(-3.0)]);
-        let j = judge_loop(&gt, [0.0, 1.0], &LoopCriteria::same_view()).expect("judged");
+        let j = judge_loop(&gt, [0.0, 1.0], None, &LoopCriteria::same_view()).expect("judged");
         assert!(
             (j.heading_rad - (std::f64::consts::TAU - 6.0)).abs() < 1e-9,
             "{j:?}"
@@ -228,11 +270,14 @@ mod tests {
         let gt = groundtruth();
         let c = LoopCriteria::default();
         // Within one period (0.01 s) of the ends: the end pose.
-        assert!(judge_loop(&gt, [-0.005, 10.005], &c).is_some());
-        assert_eq!(judge_loop(&gt, [-0.5, 1.0], &c), None);
-        assert_eq!(judge_loop(&gt, [1.0, 10.5], &c), None);
-        assert_eq!(judge_loop(&gt, [1.0, f64::NAN], &c), None);
-        assert_eq!(judge_loop(&Trajectory::default(), [0.0, 0.0], &c), None);
+        assert!(judge_loop(&gt, [-0.005, 10.005], None, &c).is_some());
+        assert_eq!(judge_loop(&gt, [-0.5, 1.0], None, &c), None);
+        assert_eq!(judge_loop(&gt, [1.0, 10.5], None, &c), None);
+        assert_eq!(judge_loop(&gt, [1.0, f64::NAN], None, &c), None);
+        assert_eq!(
+            judge_loop(&Trajectory::default(), [0.0, 0.0], None, &c),
+            None
+        );
     }
 
     #[test]
@@ -240,6 +285,7 @@ mod tests {
         let verdict = |true_loop| LoopJudgement {
             distance_m: 0.0,
             heading_rad: 0.0,
+            relative_error: None,
             true_loop,
         };
         let mut counts = LoopCounts::default();
@@ -264,5 +310,29 @@ mod tests {
             .expect("json"),
             serde_json::json!({"accepted": 3, "accepted_false": 1, "rejected": 1})
         );
+    }
+
+    /// A loop with a measured relative pose is judged by it: 3 m apart (across a lane) and
+    /// measured right is true; 0.2 m apart but measured a plant spacing (1 m) off is false.
+    #[test]
+    fn a_measured_relative_pose_is_judged_against_ground_truth() {
+        let gt = groundtruth();
+        let truth = |a: f64, b: f64| {
+            let at = |t: f64| interpolate(&gt, t);
+            at(b).inverse() * at(a)
+        };
+        let criteria = LoopCriteria::default();
+        let right = truth(4.0, 1.0) * Isometry3::translation(0.05, -0.03, 0.0);
+        let j = judge_loop(&gt, [4.0, 1.0], Some(&right), &criteria).expect("judged");
+        assert!(j.distance_m > 2.9, "{j:?}");
+        assert!(j.true_loop, "3 m apart, measured within 6 cm: {j:?}");
+        let (m, _) = j.relative_error.expect("measured");
+        assert!((m - 0.05f64.hypot(0.03)).abs() < 1e-9, "{j:?}");
+        let aliased = truth(1.2, 1.0) * Isometry3::translation(1.0, 0.0, 0.0);
+        let j = judge_loop(&gt, [1.2, 1.0], Some(&aliased), &criteria).expect("judged");
+        assert!(!j.true_loop && j.distance_m < 0.25, "{j:?}");
+        let turned = truth(1.2, 1.0) * Isometry3::rotation(Vector3::z() * 0.2);
+        let j = judge_loop(&gt, [1.2, 1.0], Some(&turned), &criteria).expect("judged");
+        assert!(!j.true_loop, "11.5° off: {j:?}");
     }
 }

@@ -6,6 +6,10 @@
 //! every one within 0.3 m and 180° apart). The heading difference is reported with every
 //! verdict.
 //!
+//! A loop whose event carries its measured relative pose (`Event::loop_relative_pose`) is
+//! judged by that measurement's error against ground truth instead (0.5 m and 10°); the
+//! error is reported with the verdict.
+//!
 //! Every accepted loop is judged from the two stamps its event carries
 //! (`Event::loop_stamps_ns`). An accepted loop without stamps (a plugin built before
 //! events carried them) or with stamps outside the ground truth is counted in `accepted`
@@ -28,6 +32,12 @@ pub struct JudgedEvent {
     pub gt_distance_m: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gt_heading_deg: Option<f64>,
+    /// For a loop that carried its measured relative pose: that pose's error against
+    /// ground truth, metres and degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error_deg: Option<f64>,
 }
 
 /// Judges every accepted loop of `events` against `groundtruth` by `criteria`; returns the
@@ -44,7 +54,12 @@ pub fn judge(
             let judgement: Option<LoopJudgement> = match event.kind {
                 EventKind::LoopClosureAccepted => {
                     let judgement = event.loop_stamps_ns.and_then(|stamps| {
-                        eval::judge_loop(groundtruth, stamps.map(|ns| ns as f64 * 1e-9), criteria)
+                        eval::judge_loop(
+                            groundtruth,
+                            stamps.map(|ns| ns as f64 * 1e-9),
+                            event.relative_pose().as_ref(),
+                            criteria,
+                        )
                     });
                     counts.add_accepted(judgement.as_ref());
                     judgement
@@ -60,6 +75,10 @@ pub fn judge(
                 true_loop: judgement.map(|j| j.true_loop),
                 gt_distance_m: judgement.map(|j| j.distance_m),
                 gt_heading_deg: judgement.map(|j| j.heading_rad.to_degrees()),
+                relative_error_m: judgement.and_then(|j| j.relative_error).map(|e| e.0),
+                relative_error_deg: judgement
+                    .and_then(|j| j.relative_error)
+                    .map(|e| e.1.to_degrees()),
             }
         })
         .collect();

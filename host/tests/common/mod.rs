@@ -24,6 +24,18 @@ pub fn json(path: &Path) -> serde_json::Value {
 /// Runs `plugin` through the host on a scenario with `params` as its configuration;
 /// returns its results folder.
 pub fn run(dir: &Path, scenario: &str, plugin: &str, label: &str, params: &str) -> PathBuf {
+    run_with(dir, scenario, plugin, label, params, &[])
+}
+
+/// [`run`] with extra arguments for `vinebench run` (e.g. `--max-time 80`).
+pub fn run_with(
+    dir: &Path,
+    scenario: &str,
+    plugin: &str,
+    label: &str,
+    params: &str,
+    extra: &[&str],
+) -> PathBuf {
     let config = dir.join(format!("{label}.toml"));
     std::fs::write(&config, params).expect("write plugin config");
     let out = dir.join(label);
@@ -39,6 +51,7 @@ pub fn run(dir: &Path, scenario: &str, plugin: &str, label: &str, params: &str) 
         .arg(&config)
         .arg("--out")
         .arg(&out)
+        .args(extra)
         .env("VINEBENCH_PLUGIN_PATH", deps_dir())
         .output()
         .expect("vinebench runs");
@@ -76,6 +89,9 @@ pub struct LoopEvent {
     pub stamps_ns: Option<[i64; 2]>,
     /// The host's judgement against ground truth (accepted loops with stamps only).
     pub true_loop: Option<bool>,
+    /// The error of the loop's measured relative pose against ground truth, m, when the
+    /// plugin sent one.
+    pub relative_error_m: Option<f64>,
 }
 
 /// A run's loop-closure events of one kind (`loop_closure_accepted`, …), in order.
@@ -91,6 +107,7 @@ pub fn loop_events(folder: &Path, kind: &str) -> Vec<LoopEvent> {
                 .as_array()
                 .map(|s| [0, 1].map(|i| s[i].as_i64().expect("loop stamps are integers"))),
             true_loop: e["true_loop"].as_bool(),
+            relative_error_m: e["relative_error_m"].as_f64(),
         })
         .collect()
 }

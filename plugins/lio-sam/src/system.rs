@@ -267,12 +267,19 @@ impl LioSam {
                     "keyframe {newer} to {older}: ICP fitness {:.4} m²",
                     m.fitness
                 );
-                self.events.push(Event::loop_closure(
-                    stamp_ns,
-                    EventKind::LoopClosureAccepted,
-                    [stamp_ns, self.keyframes[older].stamp_ns],
-                    detail,
-                ));
+                // The measured relative pose of the two keyframes' base poses, for the
+                // host's judgement against ground truth.
+                let base_older_from_newer =
+                    self.lidar_from_base.inverse() * m.older_from_newer * self.lidar_from_base;
+                self.events.push(
+                    Event::loop_closure(
+                        stamp_ns,
+                        EventKind::LoopClosureAccepted,
+                        [stamp_ns, self.keyframes[older].stamp_ns],
+                        detail,
+                    )
+                    .with_relative_pose(&base_older_from_newer),
+                );
             }
             Err(fitness) => {
                 self.events.push(Event::loop_closure(

@@ -7,6 +7,8 @@
 //! - [`kdtree`], [`voxel`]: nearest neighbours and voxel-grid downsampling for maps;
 //! - [`geometry`], [`lsq`], [`icp`]: lines and planes from neighbours, Gauss–Newton on SE(3)
 //!   with degeneracy handling, point-to-plane ICP;
+//! - [`m2dp`]: the M2DP global descriptor of a 3D point cloud (He, Wang and Zhang 2016), for
+//!   lidar place recognition;
 //! - [`ba`]: ORB-SLAM2's bundle adjustment: sparse Schur-complement Levenberg–Marquardt over
 //!   keyframe poses and map points with monocular and stereo reprojection residuals, and the
 //!   motion-only pose optimisation with χ² outlier rounds;
@@ -27,6 +29,7 @@ pub mod icp;
 pub mod imu;
 pub mod kdtree;
 pub mod lsq;
+pub mod m2dp;
 pub mod occupancy;
 pub mod posegraph;
 pub mod scan2d;
