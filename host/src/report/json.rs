@@ -6,7 +6,8 @@
 //! Scenarios and plugins appear in the table's column order. An ok run has every key,
 //! with full f64 precision and `null` for a value that is missing or not finite;
 //! `loops_accepted` counts the accepted loop closures, `loops_false` those of them that
-//! ground truth shows false (joining poses more than 1 m apart), and
+//! ground truth shows false (a measured relative pose off by more than 0.5 m or 10°, or
+//! without one, joining poses more than 1 m apart), and
 //! `loops_unjudged`, present only when not zero, those that could not be judged (no
 //! stamps). A failed run has `status` only. A run whose route was cut (`--max-time`) also
 //! has `max_time_s`, the route limit in simulated seconds, so a short-route table is never

@@ -74,7 +74,8 @@ pub struct ScenarioTruth {
 /// - `table.md`, `table.csv`, `table.tex`: the paper's Table 2 layout. Rows `max`, `mean`,
 ///   `median`, `rmse`, `std` (metres, 3 decimals), `RTF` (real-time factor,
 ///   1 decimal), `loops` (loop closures accepted) and `false loops` (of those, the ones
-///   ground truth shows false: joining poses more than 1 m apart); one column per
+///   ground truth shows false: a measured relative pose off by more than 0.5 m or 10°, or
+///   without one, joining poses more than 1 m apart); one column per
 ///   (scenario, plugin) run, all systems of the first
 ///   scenario, then of the next, under a two-level header (scenario, then system). A
 ///   failed run shows `failed` in its cells and its reason below the table (Markdown: a

@@ -186,6 +186,33 @@ mod tests {
         assert!((judged[2].gt_heading_deg.expect("judged") - 180.0).abs() < 1e-9);
     }
 
+    /// A loop sent with its measured relative pose is judged by it, whatever the distance:
+    /// 2 m along the lane measured right is true, the same place measured 1 m off is false;
+    /// events.json carries the error.
+    #[test]
+    fn a_measured_relative_pose_decides_the_verdict() {
+        let gt = groundtruth();
+        // At 25 s: x = 5, y = 0.3; at 3 s: x = 3, y = 0; both facing east.
+        let truth = Isometry3::translation(2.0, 0.3, 0.0);
+        let events = vec![
+            accepted(25 * S, 3 * S).with_relative_pose(&truth),
+            accepted(25 * S, 5 * S).with_relative_pose(&Isometry3::translation(1.0, 0.3, 0.0)),
+        ];
+        let (counts, judged) = judge(events, &gt, &LoopCriteria::default());
+        assert_eq!(
+            (counts.accepted, counts.accepted_false),
+            (2, 1),
+            "{counts:?}"
+        );
+        assert_eq!(judged[0].true_loop, Some(true));
+        assert!(judged[0].relative_error_m.expect("measured") < 1e-9);
+        assert_eq!(judged[1].true_loop, Some(false));
+        assert!((judged[1].relative_error_m.expect("measured") - 1.0).abs() < 1e-9);
+        let json = serde_json::to_value(&judged).expect("json");
+        assert!(json[1]["relative_error_m"].as_f64().is_some(), "{json}");
+        assert_eq!(json[1]["loop_relative_pose"][0], 1.0, "{json}");
+    }
+
     #[test]
     fn events_json_carries_the_stamps_and_the_verdict() {
         let events = vec![
