@@ -28,8 +28,8 @@ use crate::config::IcpConfig;
 #[derive(Debug, Clone)]
 pub struct Reference {
     tree: KdTree3,
-    /// Normals by tree index (the tree reorders its points, so they are looked up by the
-    /// point's position in [`KdTree3::points`] through `order`).
+    /// The normal of each of the tree's points, in the tree's order (the tree reorders the
+    /// points it is built from).
     normals: Vec<Vector3<f64>>,
 }
 
@@ -43,21 +43,21 @@ impl Reference {
             .collect();
         let mut boxes = Vec::with_capacity(work.len() / knn.max(1) * 2 + 1);
         split(&mut work, knn.max(3), &mut boxes);
-        // The tree is built over the means; normals are matched back by exact position.
-        let mut sorted: Vec<(Vector3<f64>, Vector3<f64>)> = boxes;
-        let tree = KdTree3::new(sorted.iter().map(|b| b.0).collect());
-        // Recover each tree point's normal: sort the boxes into the tree's order.
-        let mut order: Vec<usize> = (0..sorted.len()).collect();
+        // The tree reorders the means it is built over; each one's normal is found again by
+        // the mean's exact bits (two boxes with bit-identical means are interchangeable).
+        let tree = KdTree3::new(boxes.iter().map(|b| b.0).collect());
         let key = |v: &Vector3<f64>| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
-        order.sort_by_key(|&i| key(&sorted[i].0));
-        let mut normals = Vec::with_capacity(sorted.len());
-        for p in tree.points() {
-            let k = order
-                .binary_search_by_key(&key(p), |&i| key(&sorted[i].0))
-                .expect("every tree point is a box mean");
-            normals.push(sorted[order[k]].1);
-        }
-        sorted.clear();
+        boxes.sort_by_key(|b| key(&b.0));
+        let normals = tree
+            .points()
+            .iter()
+            .map(|p| {
+                let k = boxes
+                    .binary_search_by_key(&key(p), |b| key(&b.0))
+                    .expect("every tree point is a box mean");
+                boxes[k].1
+            })
+            .collect();
         Self { tree, normals }
     }
 

@@ -126,8 +126,14 @@ impl StaticMapping {
             .add_first(submaps[0].odometry_pose)
             .map_err(backend_error)?;
         report.back_end_s += seconds_since(t);
-        let mut persistence = Persistence::default();
-        let mut events = Vec::new();
+        let mut loops = LoopCloser {
+            cfg,
+            submaps: &submaps,
+            descriptors: &descriptors,
+            lidar_from_base: self.lidar_from_base,
+            persistence: Persistence::default(),
+            events: Vec::new(),
+        };
         for i in 1..submaps.len() {
             let t = Instant::now();
             let m = submap::match_to_previous(&submaps[i - 1], &submaps[i], cfg);
@@ -139,19 +145,10 @@ impl StaticMapping {
                 .map_err(backend_error)?;
             report.back_end_s += seconds_since(t);
             if cfg.loop_closure.enabled {
-                close_loop(
-                    i,
-                    &submaps,
-                    &descriptors,
-                    &mut graph,
-                    &mut persistence,
-                    &mut events,
-                    &mut report,
-                    cfg,
-                    &self.lidar_from_base,
-                )?;
+                loops.close(i, &mut graph, &mut report)?;
             }
         }
+        let events = loops.events;
 
         let trajectory = odometry
             .sweeps
@@ -187,95 +184,105 @@ impl StaticMapping {
     }
 }
 
-/// Loop detection, verification and insertion for submap `i` (just added to the graph).
-#[allow(clippy::too_many_arguments)]
-fn close_loop(
-    i: usize,
-    submaps: &[Submap],
-    descriptors: &[Option<Descriptor>],
-    graph: &mut SubmapGraph,
-    persistence: &mut Persistence,
-    events: &mut Vec<Event>,
-    report: &mut BuildReport,
-    cfg: &Config,
-    lidar_from_base: &Isometry3<f64>,
-) -> Result<(), PluginError> {
-    let lc = &cfg.loop_closure;
-    let positions: Vec<Vector3<f64>> = (0..=i).map(|k| graph.pose(k).translation.vector).collect();
-    let t = Instant::now();
-    let pairs = loops::candidates(i, &positions, &descriptors[..=i], lc);
-    report.m2dp_s += seconds_since(t);
-    report.loop_detections += usize::from(!pairs.is_empty());
-    if !persistence.step(!pairs.is_empty(), 1) {
-        return Ok(());
-    }
-    let t = Instant::now();
-    let here = graph.pose(i);
-    let mut edges = Vec::new();
-    for &j in &pairs {
-        report.loop_verifications += 1;
-        if let Ok(edge) = loops::verify(
-            &submaps[i].cloud,
-            &here,
-            j,
-            &submaps[j].reference,
-            &graph.pose(j),
-            lc,
-            &cfg.icp,
-        ) {
-            edges.push(edge);
+/// Loop detection, verification and insertion over the submaps, one at a time.
+struct LoopCloser<'a> {
+    cfg: &'a Config,
+    submaps: &'a [Submap],
+    descriptors: &'a [Option<Descriptor>],
+    lidar_from_base: Isometry3<f64>,
+    persistence: Persistence,
+    events: Vec<Event>,
+}
+
+impl LoopCloser<'_> {
+    /// Detects, verifies and adds the loops of submap `i`, just added to `graph`.
+    fn close(
+        &mut self,
+        i: usize,
+        graph: &mut SubmapGraph,
+        report: &mut BuildReport,
+    ) -> Result<(), PluginError> {
+        let (cfg, submaps, descriptors) = (self.cfg, self.submaps, self.descriptors);
+        let lidar_from_base = &self.lidar_from_base;
+        let (persistence, events) = (&mut self.persistence, &mut self.events);
+        let lc = &cfg.loop_closure;
+        let positions: Vec<Vector3<f64>> =
+            (0..=i).map(|k| graph.pose(k).translation.vector).collect();
+        let t = Instant::now();
+        let pairs = loops::candidates(i, &positions, &descriptors[..=i], lc);
+        report.m2dp_s += seconds_since(t);
+        report.loop_detections += usize::from(!pairs.is_empty());
+        if !persistence.step(!pairs.is_empty(), 1) {
+            return Ok(());
         }
-    }
-    report.verification_s += seconds_since(t);
-    report.loop_edges_verified += edges.len();
-    if edges.is_empty() {
-        return Ok(());
-    }
-    let stamp = submaps[i].stamp_ns;
-    match loops::agree(&edges, |k| graph.pose(k), lc) {
-        Ok(()) => {
-            for e in &edges {
-                let base_from_lidar = lidar_from_base.inverse();
-                events.push(
-                    Event::loop_closure(
-                        stamp,
-                        EventKind::LoopClosureAccepted,
-                        [stamp, submaps[e.target].stamp_ns],
-                        format!(
-                            "submap {i} to submap {} (score {:.3}, {} agreeing edges)",
-                            e.target,
-                            e.score,
-                            edges.len()
-                        ),
-                    )
-                    .with_relative_pose(
-                        &(base_from_lidar * e.target_from_current * lidar_from_base),
-                    ),
-                );
+        let t = Instant::now();
+        let here = graph.pose(i);
+        let mut edges = Vec::new();
+        for &j in &pairs {
+            report.loop_verifications += 1;
+            if let Ok(edge) = loops::verify(
+                &submaps[i].cloud,
+                &here,
+                j,
+                &submaps[j].reference,
+                &graph.pose(j),
+                lc,
+                &cfg.icp,
+            ) {
+                edges.push(edge);
             }
-            report.loops_accepted += 1;
-            report.loop_edges_added += edges.len();
-            let t = Instant::now();
-            graph
-                .add_loops(i, edges.iter().map(|e| (e.target, e.target_from_current)))
-                .map_err(|e| PluginError::new(format!("backend: {e}")))?;
-            report.back_end_s += seconds_since(t);
         }
-        Err((m, rad)) => {
-            report.loops_rejected += 1;
-            let first = edges[0];
-            events.push(Event::loop_closure(
-                stamp,
-                EventKind::LoopClosureRejected,
-                [stamp, submaps[first.target].stamp_ns],
-                format!(
-                    "submap {i}: {} verified edges disagree by {m:.3} m, {rad:.4} rad",
-                    edges.len()
-                ),
-            ));
+        report.verification_s += seconds_since(t);
+        report.loop_edges_verified += edges.len();
+        if edges.is_empty() {
+            return Ok(());
         }
+        let stamp = submaps[i].stamp_ns;
+        match loops::agree(&edges, |k| graph.pose(k), lc) {
+            Ok(()) => {
+                for e in &edges {
+                    let base_from_lidar = lidar_from_base.inverse();
+                    events.push(
+                        Event::loop_closure(
+                            stamp,
+                            EventKind::LoopClosureAccepted,
+                            [stamp, submaps[e.target].stamp_ns],
+                            format!(
+                                "submap {i} to submap {} (score {:.3}, {} agreeing edges)",
+                                e.target,
+                                e.score,
+                                edges.len()
+                            ),
+                        )
+                        .with_relative_pose(
+                            &(base_from_lidar * e.target_from_current * lidar_from_base),
+                        ),
+                    );
+                }
+                report.loops_accepted += 1;
+                report.loop_edges_added += edges.len();
+                let t = Instant::now();
+                graph
+                    .add_loops(i, edges.iter().map(|e| (e.target, e.target_from_current)))
+                    .map_err(|e| PluginError::new(format!("backend: {e}")))?;
+                report.back_end_s += seconds_since(t);
+            }
+            Err((m, rad)) => {
+                report.loops_rejected += 1;
+                let first = edges[0];
+                events.push(Event::loop_closure(
+                    stamp,
+                    EventKind::LoopClosureRejected,
+                    [stamp, submaps[first.target].stamp_ns],
+                    format!(
+                        "submap {i}: {} verified edges disagree by {m:.3} m, {rad:.4} rad",
+                        edges.len()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 impl SlamSystem for StaticMapping {
