@@ -1,4 +1,4 @@
-//! M2DP (slam_common::m2dp) on the simulator's lidar sweeps of the first 140 s of S3, the
+//! M2DP (slam_common::m2dp) on the simulator's lidar sweeps of the first 100 s of S3, the
 //! serpentine through the vineyard's lanes 3 m apart: how far apart the descriptors of sweeps taken at the same place
 //! are, compared with sweeps from the same along-row position one lane over (the vineyard's
 //! perceptual aliasing) and with sweeps from elsewhere. Printed as a Markdown table for the
@@ -9,8 +9,8 @@ use sim::sensors::Message;
 use sim::{SensorSet, SimConfig, Simulation};
 use slam_common::m2dp::{Descriptor, M2dpConfig, descriptor};
 
-/// The part of S3 streamed, s: three lanes, enough for every class of pair.
-const ROUTE_S: f64 = 140.0;
+/// The part of S3 streamed, s: two lanes, enough for every class of pair.
+const ROUTE_S: f64 = 100.0;
 
 /// Every `STRIDE`-th sweep is kept (0.5 s apart at 10 Hz, at most 0.25 m at 0.5 m/s).
 const STRIDE: usize = 5;
@@ -166,8 +166,8 @@ fn m2dp_same_place_versus_adjacent_lane_in_s3() {
         started.elapsed().as_secs_f64()
     );
     assert!(
-        lane_ys.len() >= 3,
-        "S3 should drive through several lanes along x, found lanes at {lane_ys:?}"
+        lane_ys.len() >= 2,
+        "S3 should drive through two lanes along x by then, found lanes at {lane_ys:?}"
     );
 
     for (f, &(lo, hi)) in FILTERS.iter().enumerate() {
