@@ -6,5 +6,10 @@ cd "$(dirname "$0")/.."
 source scripts/setup.sh
 
 cargo fmt --all -- --check
-cargo clippy --workspace --all-targets -- -D warnings
+# Lints in the release profile, whose build scripts, proc macros and generated OpenCV
+# bindings the release test build below reuses: on a fresh clone here, clippy 2 m 45 s and
+# the test build 14 m 15 s, against 6 m 50 s + 15 m 52 s with clippy's dev profile (whose
+# build scripts and proc macros compile at opt-level 3). The lints are the same: no code
+# depends on debug_assertions.
+cargo clippy --workspace --all-targets --release -- -D warnings
 cargo test --workspace --release
