@@ -199,11 +199,7 @@ pub(crate) fn check(f: &Factor) -> Result<(), BackendError> {
             sigmas,
             robust,
         } => {
-            if from == to {
-                return Err(BackendError::Invalid(format!(
-                    "between factor from pose {from} to itself"
-                )));
-            }
+            distinct(from, to, "between factor from pose")?;
             convert::check_pose("between measurement", from_from_to)?;
             convert::check_positive("between sigma", sigmas.as_slice())?;
             match robust {
@@ -219,12 +215,17 @@ pub(crate) fn check(f: &Factor) -> Result<(), BackendError> {
             samples,
             noise,
         } => {
-            if from == to {
-                return Err(BackendError::Invalid(format!(
-                    "IMU factor from keyframe {from} to itself"
-                )));
-            }
+            distinct(from, to, "IMU factor from keyframe")?;
             super::imu::check(samples, noise)
         }
     }
+}
+
+/// A factor between two variables must join two different ones: `"{what} {from} to
+/// itself"` otherwise.
+fn distinct(from: &u64, to: &u64, what: &str) -> Result<(), BackendError> {
+    if from == to {
+        return Err(BackendError::Invalid(format!("{what} {from} to itself")));
+    }
+    Ok(())
 }
