@@ -74,6 +74,21 @@
 //! `16 · Σ_{s≤r} C(16, s)` probes (2192 at the default `r = 2`). This was preferred to
 //! multi-probe LSH over sampled bits, which would be approximate with no distance
 //! guarantee; MIH is deterministic, exact within `R`, and needs no tuning beyond `r`.
+//!
+//! # Probing or scanning
+//!
+//! At `r = 3` (`R = 64`, a quarter of the bits) MIH stops paying for descriptors that match
+//! nothing: radius 3 alone probes `16 · C(16, 3) = 8960` buckets, each read at a random place
+//! in 4 MiB of tables, and meets about 14 % of the vocabulary's entries, each read at a
+//! random place too — more than a linear scan of every word, which reads them in order.
+//! (Exact search at a quarter of the bits is in the regime where Norouzi et al.'s own
+//! analysis gives no sublinear cost.) So [`Vocabulary::quantize`] probes by increasing
+//! radius only while probing is cheap, and settles the descriptors still undecided by one
+//! linear scan of the vocabulary for all of them at once, block by block so that each block
+//! of descriptors is read once from memory ([`Vocabulary::scan_from`] says where it
+//! switches). Both are exact within `R`, so the quantisation is the same word for word; only
+//! the time differs. RTAB-Map offers the same two kinds of search for its dictionary
+//! (`Kp/NNStrategy`: FLANN structures, or `kNNBruteForce`, a linear scan).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -102,6 +117,18 @@ const BUCKETS: usize = 1 << SUBSTRING_BITS;
 const NIL: u32 = u32::MAX;
 /// Seed of the fixed bit permutation (any constant; it only has to never change).
 const PERMUTATION_SEED: u64 = 0x424f_575f_4d49_4821; // "BOW_MIH!"
+/// Cost of probing one bucket (a read of its head, at a random place in 4 MiB of tables),
+/// in units of one distance of a linear scan. Sets only the choice between probing and
+/// scanning ([`Vocabulary::quantize`]), never a result.
+const PROBE_COST: f64 = 3.0;
+/// Cost of one entry met in a probed bucket (its links and descriptor read at a random
+/// place, a distance), in the same units.
+const ENTRY_COST: f64 = 6.0;
+/// A quantisation scans instead of probing farther once the probes made per query would
+/// exceed this share of a scan (module documentation).
+const PROBE_SHARE_OF_SCAN: f64 = 0.125;
+/// Slots per block of a linear scan: 1024 descriptors, 32 KiB.
+const SCAN_BLOCK: usize = 1024;
 
 /// Hamming distance between two descriptors.
 pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
@@ -206,6 +233,9 @@ struct HammingIndex {
     descriptors: Vec<Aligned>,
     /// The word held by each slot (stale for free slots).
     words: Vec<WordId>,
+    /// Whether each slot holds a word (free slots keep a stale descriptor, which a scan
+    /// passes over).
+    live: Vec<bool>,
     /// Free slots, reused last-freed first.
     free: Vec<u32>,
 }
@@ -246,6 +276,7 @@ impl HammingIndex {
             prev: Vec::new(),
             descriptors: Vec::new(),
             words: Vec::new(),
+            live: Vec::new(),
             free: Vec::new(),
         }
     }
@@ -276,6 +307,7 @@ impl HammingIndex {
             Some(slot) => {
                 self.descriptors[slot as usize] = Aligned(*d);
                 self.words[slot as usize] = word;
+                self.live[slot as usize] = true;
                 slot
             }
             None => {
@@ -285,6 +317,7 @@ impl HammingIndex {
                     .expect("fewer than 2³² − 1 live words");
                 self.descriptors.push(Aligned(*d));
                 self.words.push(word);
+                self.live.push(true);
                 self.next.extend([NIL; SUBSTRINGS]);
                 self.prev.extend([NIL; SUBSTRINGS]);
                 slot
@@ -317,21 +350,27 @@ impl HammingIndex {
                 self.prev[n as usize * SUBSTRINGS + t] = p;
             }
         }
+        self.live[slot as usize] = false;
         self.free.push(slot);
     }
 
     /// The two nearest entries within the radius, probing by increasing per-substring radius
-    /// `s`; after each `s`, `done(best, bound)` is asked whether to stop, knowing that every
-    /// entry nearer than `bound = 16(s + 1)` has been examined. Entries at `R` or farther are
-    /// never returned.
-    fn search(&self, q: &Descriptor, mut done: impl FnMut(&Best, u32) -> bool) -> Best {
+    /// `s` up to `last`; after each `s`, `done(best, bound)` is asked whether to stop,
+    /// knowing that every entry nearer than `bound = 16(s + 1)` has been examined. Entries
+    /// at `R` or farther are never returned.
+    fn search(
+        &self,
+        q: &Descriptor,
+        last: usize,
+        mut done: impl FnMut(&Best, u32) -> bool,
+    ) -> Best {
         let mut best = Best::EMPTY;
         if self.heads.is_empty() {
             return best;
         }
         let radius = self.radius();
         let keys = self.keys(q);
-        for (s, masks) in self.masks.iter().enumerate() {
+        for (s, masks) in self.masks.iter().enumerate().take(last + 1) {
             for (t, &key) in keys.iter().enumerate() {
                 let table = &self.heads[t * BUCKETS..(t + 1) * BUCKETS];
                 for &mask in masks {
@@ -354,6 +393,61 @@ impl HammingIndex {
         }
         best
     }
+
+    /// Live entries.
+    fn len(&self) -> usize {
+        self.descriptors.len() - self.free.len()
+    }
+
+    /// Estimated cost of probing per-substring radius `s` for one query, in units of one
+    /// distance of a linear scan ([`PROBE_COST`], [`ENTRY_COST`]).
+    fn probe_cost(&self, s: usize) -> f64 {
+        let probes = (SUBSTRINGS * self.masks[s].len()) as f64;
+        probes * (PROBE_COST + ENTRY_COST * self.len() as f64 / BUCKETS as f64)
+    }
+
+    /// The two nearest entries within the radius of every query, by a linear scan: exactly
+    /// what [`HammingIndex::search`] returns at the full radius. The scan runs over blocks of
+    /// [`SCAN_BLOCK`] slots, each block passed by every query while it is in cache.
+    fn scan(&self, queries: &[&Descriptor]) -> Vec<Best> {
+        let radius = self.radius();
+        let lanes: Vec<[u64; 4]> = queries.iter().map(|&q| lanes(q)).collect();
+        let mut bests = vec![Best::EMPTY; queries.len()];
+        let mut distances = [0u32; SCAN_BLOCK];
+        for (b, block) in self.descriptors.chunks(SCAN_BLOCK).enumerate() {
+            let first = b * SCAN_BLOCK;
+            let distances = &mut distances[..block.len()];
+            for (q, best) in lanes.iter().zip(&mut bests) {
+                // Distances first, in a loop of its own that the compiler can vectorise;
+                // then the few that matter (most pairs lie about 128 bits apart).
+                for (d, w) in distances.iter_mut().zip(block) {
+                    *d = lane_distance(q, &w.0);
+                }
+                for (k, &d) in distances.iter().enumerate() {
+                    let slot = first + k;
+                    if d < radius && d <= best.distance[1] && self.live[slot] {
+                        best.offer(d, self.words[slot], slot as u32);
+                    }
+                }
+            }
+        }
+        bests
+    }
+}
+
+/// A descriptor as four little-endian 64-bit lanes.
+fn lanes(d: &Descriptor) -> [u64; 4] {
+    let lane = |i: usize| u64::from_le_bytes(d[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+    [lane(0), lane(1), lane(2), lane(3)]
+}
+
+/// Hamming distance between a descriptor in lanes and one in bytes.
+fn lane_distance(q: &[u64; 4], d: &Descriptor) -> u32 {
+    let w = lanes(d);
+    (q[0] ^ w[0]).count_ones()
+        + (q[1] ^ w[1]).count_ones()
+        + (q[2] ^ w[2]).count_ones()
+        + (q[3] ^ w[3]).count_ones()
 }
 
 /// Whether `d1 < nndr · d2`.
@@ -523,27 +617,73 @@ impl Vocabulary {
 
     /// Quantises descriptors without changing anything: the word each would take in
     /// [`Vocabulary::add_signature`], or `None` where it would become a new word.
+    ///
+    /// Each descriptor is first looked up in the multi-index hash by increasing probe radius
+    /// while probing is cheap; those still undecided at [`Vocabulary::scan_from`] are settled
+    /// by one linear scan of the vocabulary for all of them (module documentation). Both are
+    /// exact within the search radius, so the choice changes the time taken, never a word.
     pub fn quantize(&self, descriptors: &[Descriptor]) -> Vec<Option<WordId>> {
         let (radius, nndr) = (self.index.radius(), self.config.nndr);
-        descriptors
-            .iter()
-            .map(|d| {
-                let mut accept = false;
-                let best = self.index.search(d, |best, bound| {
-                    ratio_outcome(best, bound, radius, nndr)
-                        .inspect(|&a| accept = a)
-                        .is_some()
-                });
-                accept.then_some(best.word[0])
-            })
-            .collect()
+        let probed = self.scan_from().unwrap_or(self.index.masks.len());
+        let mut out = vec![None; descriptors.len()];
+        let mut undecided = Vec::new();
+        for (i, d) in descriptors.iter().enumerate() {
+            if probed == 0 {
+                undecided.push(i);
+                continue;
+            }
+            let mut outcome = None;
+            let best = self.index.search(d, probed - 1, |best, bound| {
+                outcome = ratio_outcome(best, bound, radius, nndr);
+                outcome.is_some()
+            });
+            match outcome {
+                Some(accept) => out[i] = accept.then_some(best.word[0]),
+                None => undecided.push(i),
+            }
+        }
+        let queries: Vec<&Descriptor> = undecided.iter().map(|&i| &descriptors[i]).collect();
+        for (&i, best) in undecided.iter().zip(self.index.scan(&queries)) {
+            // Every word nearer than R examined: the outcome is certain.
+            let accept = ratio_outcome(&best, radius, radius, nndr) == Some(true);
+            out[i] = accept.then_some(best.word[0]);
+        }
+        out
+    }
+
+    /// The probe radius from which [`Vocabulary::quantize`] scans instead of probing, for the
+    /// vocabulary's present size; `None` when it probes all the way to
+    /// [`VocabularyConfig::probe_radius`]. It probes to the end if that costs no more per
+    /// query than a scan; otherwise it probes the radii that together cost at most
+    /// [`PROBE_SHARE_OF_SCAN`] of a scan (they settle re-observed words, a few bits away)
+    /// and scans for the rest. Costs are estimated from the expected bucket load.
+    pub fn scan_from(&self) -> Option<usize> {
+        let index = &self.index;
+        let scan = index.len() as f64;
+        let costs: Vec<f64> = (0..index.masks.len())
+            .map(|s| index.probe_cost(s))
+            .collect();
+        let mut spent = 0.0;
+        for (s, cost) in costs.iter().enumerate() {
+            if costs[s..].iter().sum::<f64>() <= scan {
+                return None;
+            }
+            spent += cost;
+            if spent > PROBE_SHARE_OF_SCAN * scan {
+                return Some(s);
+            }
+        }
+        None
     }
 
     /// The two nearest words to `d` that lie nearer than [`Vocabulary::search_radius`],
     /// nearest first (ties to the smaller id); exact, i.e. what a linear scan restricted to
     /// that radius returns.
     pub fn nearest(&self, d: &Descriptor) -> [Option<WordMatch>; 2] {
-        let best = self.index.search(d, |best, bound| best.distance[1] < bound);
+        let last = self.index.masks.len() - 1;
+        let best = self
+            .index
+            .search(d, last, |best, bound| best.distance[1] < bound);
         [best.get(0), best.get(1)]
     }
 
