@@ -50,7 +50,7 @@ impl Tri {
             material,
             n: unit,
             g,
-            k: TriConstants::new(material, &t),
+            k: TriConstants::new(material, &t, &g),
         }
     }
 }

@@ -57,6 +57,8 @@ mod depth_noise;
 mod ground;
 mod image;
 mod intrinsics;
+mod msaa;
+mod prefilter;
 mod raster;
 mod shading;
 mod shadow;
@@ -95,6 +97,8 @@ pub struct RgbdCamera {
     /// The colour noise by the sum of its uniforms (`depth_noise::rgb_noise_table`; empty
     /// when `rgb_sigma` is 0).
     rgb_noise: Vec<f32>,
+    /// Visibility sample offsets of a pixel (`antialias_samples` of them).
+    pattern: &'static [[f32; 2]],
 }
 
 impl RgbdCamera {
@@ -116,6 +120,7 @@ impl RgbdCamera {
             } else {
                 Vec::new()
             },
+            pattern: raster::pattern(cfg.antialias_samples),
         }
     }
 
@@ -141,7 +146,7 @@ impl RgbdCamera {
 
         // 1: cull and project.
         let visible = self.chunks.visible(&view);
-        let tris = raster::project_all(&self.chunks, &visible, &view);
+        let tris = raster::project_all(&self.chunks, &visible, &view, raster::reach(self.pattern));
         let bins = raster::bin_by_band(&tris, h, BAND_ROWS);
 
         let seed: u64 = rng.random();
@@ -165,10 +170,14 @@ impl RgbdCamera {
             light: &self.light,
             shadow: self.shadow.as_ref(),
             ground: &self.ground,
+            filter: self.cfg.filter_materials,
         };
 
         // 2-3: per band, rasterize a visibility buffer (small enough to stay in cache),
-        // then shade it; colour gets its noise here, depth is kept clean for step 4.
+        // then shade and resolve it; colour gets its noise here, depth is kept clean for
+        // step 4.
+        let pattern = self.pattern;
+        let n = pattern.len();
         let mut rgb = vec![0u8; 3 * w * h];
         let mut depth = vec![0.0f32; w * h];
         let mut cos_incidence = vec![0.0f32; w * h];
@@ -182,17 +191,18 @@ impl RgbdCamera {
                 // worker takes in turn.
                 || {
                     (
-                        vec![0.0f32; w * BAND_ROWS],
-                        vec![u32::MAX; w * BAND_ROWS],
+                        vec![0.0f32; n * w * BAND_ROWS],
+                        vec![u32::MAX; n * w * BAND_ROWS],
                         vec![[0.0f32; 3]; w],
                     )
                 },
                 |(inv_z, ids, linear), (band, (((rgb, z), cos), list))| {
                     let first_row = band * BAND_ROWS;
-                    let (inv_z, ids) = (&mut inv_z[..z.len()], &mut ids[..z.len()]);
+                    let len = n * z.len();
+                    let (inv_z, ids) = (&mut inv_z[..len], &mut ids[..len]);
                     inv_z.fill(0.0);
                     ids.fill(u32::MAX);
-                    raster::rasterize_band(&tris, list, first_row, w, inv_z, ids);
+                    raster::rasterize_band(&tris, list, first_row, (w, pattern), inv_z, ids);
                     // Row by row: no integer division per pixel.
                     for (r, ((rgb, z), cos)) in rgb
                         .chunks_exact_mut(3 * w)
@@ -201,15 +211,31 @@ impl RgbdCamera {
                         .enumerate()
                     {
                         let v = first_row + r;
-                        let (row_ids, row_inv_z) = (&ids[r * w..][..w], &inv_z[r * w..][..w]);
-                        for (u, (((lin, z), cos), (&id, &inv_z))) in linear
+                        // Through u32: exact (a frame is far narrower than 2^24) and one
+                        // instruction, where usize to f32 takes several.
+                        let y = v as u32 as f32;
+                        // The row's samples, `[sample][column]`.
+                        let (row_ids, row_q) =
+                            (&ids[r * n * w..][..n * w], &inv_z[r * n * w..][..n * w]);
+                        let mut pixel_ids = [u32::MAX; 8];
+                        let mut pixel_q = [0.0f32; 8];
+                        for (u, ((lin, z), cos)) in linear
                             .iter_mut()
                             .zip(z.iter_mut())
                             .zip(cos.iter_mut())
-                            .zip(row_ids.iter().zip(row_inv_z))
                             .enumerate()
                         {
-                            let s = shader.shade(u, v, id, inv_z);
+                            for s in 0..n {
+                                pixel_ids[s] = row_ids[s * w + u];
+                                pixel_q[s] = row_q[s * w + u];
+                            }
+                            let s = msaa::resolve(
+                                &shader,
+                                pattern,
+                                (u as u32 as f32, y),
+                                &pixel_ids[..n],
+                                &pixel_q[..n],
+                            );
                             *lin = s.rgb;
                             *z = s.depth;
                             *cos = s.cos_incidence;

@@ -4,6 +4,13 @@
 //! for the perspective camera (Heckbert & Moreton 1991), the height towards the sun for the
 //! orthographic shadow map. Both keep the largest `q` (the nearest surface); equal `q` go to
 //! the smaller triangle index, so the result never depends on drawing order.
+//!
+//! Multisampling: a pixel holds one visibility sample per offset of a [`SAMPLES_4`]-like
+//! pattern. Every offset has its own row offset, so each sample of a pixel row is a scan
+//! line of its own: a band's buffer is laid out row by row, and within a row sample by
+//! sample (`[row][sample][column]`), and a triangle's span on a sample's scan line is
+//! converted to the columns whose sample it covers. A triangle is kept when it covers any
+//! sample, so thin wires and far leaves that fall between pixel centres still show.
 
 use std::ops::Range;
 
@@ -20,6 +27,49 @@ pub(crate) const NEAR_M: f32 = 0.05;
 /// leave a crack.
 const EDGE_EPS: f32 = 1e-4;
 
+/// One sample at the pixel centre: no anti-aliasing.
+pub(crate) const SAMPLES_1: [[f32; 2]; 1] = [[0.0, 0.0]];
+/// Direct3D's standard 4x multisample pattern (`D3D11_STANDARD_MULTISAMPLE_PATTERN`), a
+/// rotated grid: offsets from the pixel centre in pixels, x right and y down, each sample
+/// on a row and a column of its own (the positions in 1/16 pixel: (-2, -6), (6, -2),
+/// (-6, 2), (2, 6)). The offsets sum to zero, so the centroid of a fully covered pixel is
+/// its centre.
+pub(crate) const SAMPLES_4: [[f32; 2]; 4] = [
+    [-0.125, -0.375],
+    [0.375, -0.125],
+    [-0.375, 0.125],
+    [0.125, 0.375],
+];
+/// Direct3D's standard 8x pattern, in 1/16 pixel: (1, -3), (-1, 3), (5, 1), (-3, -5),
+/// (-5, 5), (-7, -1), (3, 7), (7, -7); every sample on a row of its own, summing to zero.
+pub(crate) const SAMPLES_8: [[f32; 2]; 8] = [
+    [0.0625, -0.1875],
+    [-0.0625, 0.1875],
+    [0.3125, 0.0625],
+    [-0.1875, -0.3125],
+    [-0.3125, 0.3125],
+    [-0.4375, -0.0625],
+    [0.1875, 0.4375],
+    [0.4375, -0.4375],
+];
+
+/// The sample pattern of `samples` samples per pixel (1, 4 or 8; the configuration checks).
+pub(crate) fn pattern(samples: usize) -> &'static [[f32; 2]] {
+    match samples {
+        8 => &SAMPLES_8,
+        4 => &SAMPLES_4,
+        _ => &SAMPLES_1,
+    }
+}
+
+/// How far a pattern's samples lie from the pixel centre along x or y, at most.
+pub(crate) fn reach(pattern: &[[f32; 2]]) -> f32 {
+    pattern
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, &o| m.max(o.abs()))
+}
+
 /// A camera pose and pinhole, prepared for projecting world points (f32).
 #[derive(Debug, Clone)]
 pub(crate) struct View {
@@ -33,7 +83,7 @@ pub(crate) struct View {
     pub cx: f32,
     pub cy: f32,
     inv_fx: f32,
-    inv_fy: f32,
+    pub inv_fy: f32,
     pub width: usize,
     pub height: usize,
     /// Frustum planes in the world frame: inside when `n · p + d >= 0`.
@@ -159,15 +209,16 @@ pub(crate) struct ScreenTri {
 }
 
 impl ScreenTri {
-    /// `None` when the triangle is degenerate or covers no pixel centre of a
-    /// `width x height` raster.
+    /// `None` when the triangle is degenerate or surely covers no sample of a
+    /// `width x height` raster whose samples lie within `reach` pixels of the pixel centres
+    /// along x and y (0: pixel centres only). The bounds are pixel indices.
     pub fn new(
         x: [f32; 3],
         y: [f32; 3],
         q: [f32; 3],
         id: u32,
-        width: usize,
-        height: usize,
+        (width, height): (usize, usize),
+        reach: f32,
     ) -> Option<Self> {
         let (dx1, dy1) = (x[1] - x[0], y[1] - y[0]);
         let (dx2, dy2) = (x[2] - x[0], y[2] - y[0]);
@@ -177,10 +228,10 @@ impl ScreenTri {
         }
         let min = |a: [f32; 3]| a[0].min(a[1]).min(a[2]);
         let max = |a: [f32; 3]| a[0].max(a[1]).max(a[2]);
-        let x_lo = ((min(x) - EDGE_EPS).ceil().max(0.0)) as i32;
-        let x_hi = ((max(x) + EDGE_EPS).floor().min(width as f32 - 1.0)) as i32;
-        let y_lo = ((min(y) - EDGE_EPS).ceil().max(0.0)) as i32;
-        let y_hi = ((max(y) + EDGE_EPS).floor().min(height as f32 - 1.0)) as i32;
+        let x_lo = ((min(x) - reach - EDGE_EPS).ceil().max(0.0)) as i32;
+        let x_hi = ((max(x) + reach + EDGE_EPS).floor().min(width as f32 - 1.0)) as i32;
+        let y_lo = ((min(y) - reach - EDGE_EPS).ceil().max(0.0)) as i32;
+        let y_hi = ((max(y) + reach + EDGE_EPS).floor().min(height as f32 - 1.0)) as i32;
         if x_lo > x_hi || y_lo > y_hi {
             return None;
         }
@@ -216,14 +267,14 @@ impl ScreenTri {
         })
     }
 
-    /// Pixel columns of row `py` inside the triangle.
-    fn span(&self, py: f32) -> Option<(i32, i32)> {
+    /// The pixel columns whose sample at `(column + dx, py)` lies inside the triangle.
+    fn span(&self, py: f32, dx: f32) -> Option<(i32, i32)> {
         let (mut lo, mut hi) = (self.x_lo as f32, self.x_hi as f32);
         for k in 0..3 {
             let dy = py - self.y[k];
             match self.side[k] {
-                1 => hi = hi.min(self.x[k] + self.slope[k] * dy + EDGE_EPS),
-                -1 => lo = lo.max(self.x[k] + self.slope[k] * dy - EDGE_EPS),
+                1 => hi = hi.min(self.x[k] + self.slope[k] * dy + EDGE_EPS - dx),
+                -1 => lo = lo.max(self.x[k] + self.slope[k] * dy - EDGE_EPS - dx),
                 _ => {
                     if self.flat[k] * dy < 0.0 {
                         return None;
@@ -237,15 +288,21 @@ impl ScreenTri {
 }
 
 /// Moves the visible chunks' triangles to the optical frame, clips them at the near plane
-/// and projects them; the list is in chunk order (deterministic).
-pub(crate) fn project_all(chunks: &Chunks, visible: &[Range<u32>], view: &View) -> Vec<ScreenTri> {
+/// and projects them, keeping those that may cover a sample within `reach` pixels of a
+/// pixel centre; the list is in chunk order (deterministic).
+pub(crate) fn project_all(
+    chunks: &Chunks,
+    visible: &[Range<u32>],
+    view: &View,
+    reach: f32,
+) -> Vec<ScreenTri> {
     let per_chunk: Vec<Vec<ScreenTri>> = visible
         .par_iter()
         .map(|range| {
             let mut out = Vec::with_capacity(range.len());
             for id in range.clone() {
                 let t = &chunks.tris[id as usize];
-                project(view, t.p.map(|p| view.to_optical(&p)), id, &mut out);
+                project(view, t.p.map(|p| view.to_optical(&p)), id, reach, &mut out);
             }
             out
         })
@@ -253,7 +310,7 @@ pub(crate) fn project_all(chunks: &Chunks, visible: &[Range<u32>], view: &View) 
     per_chunk.concat()
 }
 
-fn project(view: &View, c: [[f32; 3]; 3], id: u32, out: &mut Vec<ScreenTri>) {
+fn project(view: &View, c: [[f32; 3]; 3], id: u32, reach: f32, out: &mut Vec<ScreenTri>) {
     let inside = c.map(|p| p[2] >= NEAR_M);
     let n_in = inside.iter().filter(|&&b| b).count();
     if n_in == 0 {
@@ -286,8 +343,8 @@ fn project(view: &View, c: [[f32; 3]; 3], id: u32, out: &mut Vec<ScreenTri>) {
                 v.map(|p| p.1),
                 v.map(|p| p.2),
                 id,
-                view.width,
-                view.height,
+                (view.width, view.height),
+                reach,
             ) {
                 out.push(tri);
             }
@@ -327,32 +384,38 @@ pub(crate) fn bin_by_band(tris: &[ScreenTri], height: usize, band_rows: usize) -
     bins
 }
 
-/// Draws the listed triangles into one band (rows `first_row..`) of a `width`-wide buffer.
+/// Draws the listed triangles into one band (pixel rows `first_row..`) of a `width`-wide
+/// buffer with one sample per offset of `pattern`, laid out `[row][sample][column]`.
 pub(crate) fn rasterize_band(
     tris: &[ScreenTri],
     list: &[u32],
     first_row: usize,
-    width: usize,
+    (width, pattern): (usize, &[[f32; 2]]),
     q_buf: &mut [f32],
     id_buf: &mut [u32],
 ) {
-    let rows = q_buf.len() / width;
+    let n = pattern.len();
+    let rows = q_buf.len() / (width * n);
     let (y0, y1) = (first_row as i32, (first_row + rows) as i32 - 1);
     for &i in list {
         let t = &tris[i as usize];
         for py in t.y_lo.max(y0)..=t.y_hi.min(y1) {
-            let fy = py as f32;
-            let Some((a, b)) = t.span(fy) else { continue };
-            let row = (py - y0) as usize * width;
-            let span = row + a as usize..=row + b as usize;
-            let q_row = t.q0 + t.qy * (fy - t.y[0]);
-            // Depth test written as selects, not a branch: where surfaces overlap its
-            // outcome is unpredictable.
-            for ((px, qb), ib) in (a..=b).zip(&mut q_buf[span.clone()]).zip(&mut id_buf[span]) {
-                let q = q_row + t.qx * (px as f32 - t.x[0]);
-                let nearer = q > *qb || (q == *qb && t.id < *ib);
-                *qb = if nearer { q } else { *qb };
-                *ib = if nearer { t.id } else { *ib };
+            for (s, &[dx, dy]) in pattern.iter().enumerate() {
+                let fy = py as f32 + dy;
+                let Some((a, b)) = t.span(fy, dx) else {
+                    continue;
+                };
+                let row = ((py - y0) as usize * n + s) * width;
+                let span = row + a as usize..=row + b as usize;
+                let q_row = t.q0 + t.qy * (fy - t.y[0]);
+                // Depth test written as selects, not a branch: where surfaces overlap its
+                // outcome is unpredictable.
+                for ((px, qb), ib) in (a..=b).zip(&mut q_buf[span.clone()]).zip(&mut id_buf[span]) {
+                    let q = q_row + t.qx * ((px as f32 + dx) - t.x[0]);
+                    let nearer = q > *qb || (q == *qb && t.id < *ib);
+                    *qb = if nearer { q } else { *qb };
+                    *ib = if nearer { t.id } else { *ib };
+                }
             }
         }
     }

@@ -4,6 +4,7 @@
 
 use super::chunks::Chunks;
 use super::ground::GroundTexture;
+use super::prefilter;
 use super::raster::{View, dot, sub};
 use super::shadow::ShadowMap;
 use super::texture::{Surface, albedo, tree_line};
@@ -55,6 +56,8 @@ pub(crate) struct Shader<'a> {
     pub light: &'a Light,
     pub shadow: Option<&'a ShadowMap>,
     pub ground: &'a GroundTexture,
+    /// Band-limit the materials to the pixel footprint (`prefilter`).
+    pub filter: bool,
 }
 
 fn sq(c: [f32; 3]) -> [f32; 3] {
@@ -62,24 +65,36 @@ fn sq(c: [f32; 3]) -> [f32; 3] {
 }
 
 impl Shader<'_> {
-    pub fn shade(&self, u: usize, v: usize, id: u32, inv_z: f32) -> Shaded {
-        // Through u32: exact (a frame is far narrower than 2^24) and one instruction, where
-        // usize to f32 takes several.
-        let d = self.view.ray(u as u32 as f32, v as u32 as f32);
+    /// The surface `id` (`u32::MAX`: none) seen through image point `(x, y)` (pixel
+    /// coordinates; integers are pixel centres); `inv_z` is the rasterizer's 1 / z there, the
+    /// fallback when the ray grazes the surface's plane.
+    pub fn shade(&self, x: f32, y: f32, id: u32, inv_z: f32) -> Shaded {
+        let d = self.view.ray(x, y);
         let len = dot(&d, &d).sqrt();
         let inv_len = 1.0 / len;
         if id == u32::MAX {
             let unit = d.map(|x| x * inv_len);
+            // Far away: mostly the haze colour.
+            let hazy = |c: [f32; 3]| {
+                let t = sq(c);
+                let h = sq(HORIZON);
+                [0, 1, 2].map(|k| t[k] + (h[k] - t[k]) * 0.45)
+            };
+            let rgb = if self.filter {
+                // The crown line box-filtered over the pixel (about 1 / fy of elevation).
+                match prefilter::tree_line(&unit, self.view.inv_fy) {
+                    Some((c, cover)) if cover < 1.0 => {
+                        let (t, s) = (hazy(c), sky(unit[2]));
+                        [0, 1, 2].map(|k| s[k] + (t[k] - s[k]) * cover)
+                    }
+                    Some((c, _)) => hazy(c),
+                    None => sky(unit[2]),
+                }
+            } else {
+                tree_line(&unit).map_or_else(|| sky(unit[2]), hazy)
+            };
             return Shaded {
-                rgb: tree_line(&unit).map_or_else(
-                    || sky(unit[2]),
-                    |c| {
-                        // Far away: mostly the haze colour.
-                        let t = sq(c);
-                        let h = sq(HORIZON);
-                        [0, 1, 2].map(|k| t[k] + (h[k] - t[k]) * 0.45)
-                    },
-                ),
+                rgb,
                 depth: 0.0,
                 cos_incidence: 0.0,
             };
@@ -120,9 +135,9 @@ impl Shader<'_> {
             // Geometric mean of the footprint's axes: at grazing angles it is stretched in
             // one direction only, and blurring both would wash the ground out.
             per_m: self.view.fx * cos_incidence.max(0.05).sqrt() / (depth * len),
+            filtered: self.filter,
         };
-        let (albedo, relief) = albedo(&surface, self.ground);
-        let base = sq(albedo);
+        let (base, relief) = albedo(&surface, self.ground);
         let point = [0, 1, 2].map(|k| o[k] + depth * d[k]);
         let l = &self.light;
         let mut ndl = dot(&n, &l.sun);
@@ -148,6 +163,23 @@ impl Shader<'_> {
             rgb,
             depth,
             cos_incidence,
+        }
+    }
+}
+
+impl Shader<'_> {
+    /// Depth and incidence cosine of triangle `id`'s plane along the ray through `(x, y)`;
+    /// `fallback` where the ray grazes the plane.
+    pub fn depth_at(&self, x: f32, y: f32, id: u32, fallback: (f32, f32)) -> (f32, f32) {
+        let d = self.view.ray(x, y);
+        let tri = &self.chunks.tris[id as usize];
+        let facing = dot(&tri.n, &d);
+        let depth = dot(&tri.n, &sub(&tri.p[0], &self.view.origin)) / facing;
+        if depth.is_finite() && depth > 0.0 {
+            let len = dot(&d, &d).sqrt();
+            (depth, (facing.abs() * (1.0 / len)).min(1.0))
+        } else {
+            fallback
         }
     }
 }

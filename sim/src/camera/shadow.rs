@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::chunks::Chunks;
-use super::raster::{ScreenTri, bin_by_band, dot, rasterize_band};
+use super::raster::{SAMPLES_1, ScreenTri, bin_by_band, dot, rasterize_band};
 use super::shading::Light;
 use crate::world::Material;
 
@@ -88,8 +88,8 @@ impl ShadowMap {
                     p.map(|p| (dot(&v, &p) - origin[1]) / TEXEL_M),
                     p.map(|p| dot(&w, &p)),
                     i,
-                    width,
-                    height,
+                    (width, height),
+                    0.0,
                 )
             })
             .collect();
@@ -103,7 +103,7 @@ impl ShadowMap {
             .zip(bins.par_iter())
             .enumerate()
             .for_each(|(band, ((q, id), list))| {
-                rasterize_band(&tris, list, band * BAND, width, q, id);
+                rasterize_band(&tris, list, band * BAND, (width, &SAMPLES_1), q, id);
             });
         drop(ids);
         // Quantised upwards (a caster never moves below its true height) in 1..=65535.

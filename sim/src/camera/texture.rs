@@ -1,7 +1,14 @@
-//! Procedural materials: albedo (sRGB, 0..1) of a surface point from its texture-space
-//! position. Value noise on an integer lattice hash (cheap, deterministic, no tables);
-//! patterns sized for a 640x480 camera a metre or a few from the canopy. The ground (soil
-//! and grass) is looked up in precomputed textures instead (`ground`).
+//! Procedural materials: albedo of a surface point from its texture-space position. Value
+//! noise on an integer lattice hash (cheap, deterministic, no tables); patterns sized for a
+//! 640x480 camera a metre or a few from the canopy. The ground (soil and grass) is looked
+//! up in precomputed mip-mapped textures instead (`ground`).
+//!
+//! Filtering (`filter_materials`): a pixel should show the mean of its footprint, and
+//! detail finer than the footprint, point-sampled, only aliases (shimmer from frame to
+//! frame). The plants' materials are band-limited to the footprint in the two standard
+//! ways of procedural texturing (Ebert, Musgrave, Peachey, Perlin & Worley, "Texturing and
+//! Modeling: A Procedural Approach", 3rd ed. 2003, ch. 2 "Antialiasing"):
+//! frequency clamping of noise and analytic prefiltering of thin features (`prefilter`).
 
 use super::ground::GroundTexture;
 use crate::world::Material;
@@ -21,21 +28,28 @@ pub(crate) struct Surface {
     /// Inverse size of the pixel's footprint on the surface (footprints per metre): detail
     /// finer than about two footprints is left out (it would only alias).
     pub per_m: f32,
+    /// Band-limit the materials to the footprint (see the module's doc).
+    pub filtered: bool,
 }
 
 /// What the materials need from a triangle that does not change across it, computed once
-/// per world: for a leaf, which corner is the tip and the leaf's tone.
+/// per world: for a leaf, which corner is the tip, the leaf's tone and how fast its pattern's
+/// coordinates change across the surface.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct TriConstants {
     /// The leaf's tip corner (1 or 2; the other is its side corner).
     pub tip: u8,
     /// One tone per leaf in [0, 1), from its petiole end's plant-local position.
     pub tone: f32,
+    /// Gradient norms (per metre) of the leaf's `across`, `along` and margin coordinates
+    /// (see [`leaf`]).
+    pub per_m: [f32; 3],
 }
 
 impl TriConstants {
-    /// From a triangle's material and corners in texture space.
-    pub fn new(material: Material, corners: &[[f32; 3]; 3]) -> Self {
+    /// From a triangle's material, corners in texture space and the gradients of its
+    /// barycentric weights of corners 1 and 2 (per metre, in its plane).
+    pub fn new(material: Material, corners: &[[f32; 3]; 3], g: &[[f32; 3]; 2]) -> Self {
         if material != Material::Leaf {
             return Self::default();
         }
@@ -47,9 +61,20 @@ impl TriConstants {
             (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
         };
         let c0 = corners[0].map(|c| floor(c * 500.0).1);
+        let tip = if d(1) > d(2) { 1 } else { 2 };
+        let (g_tip, g_side) = (g[tip - 1], g[2 - tip]);
+        let norm = |a: f32, b: f32| {
+            let v = [0, 1, 2].map(|k| a * g_tip[k] + b * g_side[k]);
+            (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+        };
         Self {
-            tip: if d(1) > d(2) { 1 } else { 2 },
+            tip: tip as u8,
             tone: hash(c0[0], c0[1], c0[2], 41),
+            per_m: [
+                norm(0.0, 1.0),
+                norm(1.0, LEAF_ALONG_SIDE),
+                norm(LEAF_MARGIN_ALONG, 1.0 + LEAF_MARGIN_ALONG * LEAF_ALONG_SIDE),
+            ],
         }
     }
 }
@@ -60,18 +85,29 @@ fn octave(period_m: f32, per_m: f32) -> f32 {
     ((period_m * per_m - 2.0) * 0.5).clamp(0.0, 1.0)
 }
 
-/// A surface point's albedo (sRGB) and relief: the factor on direct sunlight from the
-/// surface's small-scale shape (1 but for the ground, see [`GroundTexture`]).
+pub(super) fn sq(c: [f32; 3]) -> [f32; 3] {
+    c.map(|x| x * x)
+}
+
+/// A surface point's albedo, linear (the materials' sRGB colours squared: gamma 2, as the
+/// output is encoded), and relief: the factor on direct sunlight from the surface's
+/// small-scale shape (1 but for the ground, see [`GroundTexture`]).
 pub(crate) fn albedo(s: &Surface, ground: &GroundTexture) -> ([f32; 3], f32) {
+    if s.filtered {
+        return super::prefilter::albedo(s, ground);
+    }
     let c = match s.material {
-        Material::Soil | Material::Grass => return ground.sample(s.material, s.t, s.per_m),
+        Material::Soil | Material::Grass => {
+            let (c, relief) = ground.sample(s.material, s.t, s.per_m);
+            return (sq(c), relief);
+        }
         Material::Bark => bark(s.t, s.per_m),
         Material::Leaf => leaf(s),
         Material::Grape => grape(s.t),
         Material::Post => post(s.t),
         Material::Wire => wire(s.t),
     };
-    (c, 1.0)
+    (sq(c), 1.0)
 }
 
 pub(super) fn hash(x: i32, y: i32, z: i32, salt: u32) -> f32 {
@@ -111,7 +147,7 @@ pub(super) fn noise2(x: f32, y: f32, salt: u32) -> f32 {
 }
 
 /// 3D value noise in [0, 1) at lattice spacing 1.
-fn noise3(p: [f32; 3], salt: u32) -> f32 {
+pub(super) fn noise3(p: [f32; 3], salt: u32) -> f32 {
     let fl = p.map(floor);
     let f = fl.map(|c| c.0);
     let i = fl.map(|c| c.1);
@@ -136,11 +172,11 @@ fn noise3(p: [f32; 3], salt: u32) -> f32 {
     lerp(plane(0), plane(1), s[2])
 }
 
-fn scale(c: [f32; 3], k: f32) -> [f32; 3] {
+pub(super) fn scale(c: [f32; 3], k: f32) -> [f32; 3] {
     c.map(|x| x * k)
 }
 
-fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+pub(super) fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [
         lerp(a[0], b[0], t),
         lerp(a[1], b[1], t),
@@ -148,15 +184,18 @@ fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     ]
 }
 
-/// Vine bark: grey-brown with long dark fissures along the wood (ridged noise stretched
-/// along z for trunks, the furrows of cordons come out shorter) and lighter shreds.
-fn bark(t: [f32; 3], per_m: f32) -> [f32; 3] {
+/// Vine bark's ridged noise at `t`: lattice cells of 1/80 m across the wood and 1/9 m
+/// along it (trunks stand along z; the furrows of cordons come out shorter).
+pub(super) fn bark_ridge(t: [f32; 3]) -> f32 {
     let n = noise3([t[0] * 80.0, t[1] * 80.0, t[2] * 9.0], 31);
-    let ridge = (n - 0.5).abs();
+    (n - 0.5).abs()
+}
+
+/// Bark's colour (sRGB) at `ridge`, its fissures darkened by `fissure` (0..1).
+pub(super) fn bark_colour(ridge: f32, fissure: f32) -> [f32; 3] {
     let mut c = scale([0.40, 0.32, 0.25], 0.8 + 0.5 * ridge);
-    let w = octave(0.012, per_m);
     if ridge < 0.07 {
-        c = scale(c, 1.0 - (0.55 - 7.0 * ridge) * w.max(0.4));
+        c = scale(c, 1.0 - (0.55 - 7.0 * ridge) * fissure);
     }
     if ridge > 0.42 {
         c = mix(c, [0.56, 0.50, 0.43], (ridge - 0.42) * 8.0);
@@ -164,53 +203,129 @@ fn bark(t: [f32; 3], per_m: f32) -> [f32; 3] {
     c
 }
 
+/// Vine bark: grey-brown with long dark fissures along the wood and lighter shreds.
+fn bark(t: [f32; 3], per_m: f32) -> [f32; 3] {
+    bark_colour(bark_ridge(t), octave(0.012, per_m).max(0.4))
+}
+
+/// A leaf's `along` coordinate is `w[tip] + LEAF_ALONG_SIDE * w[side]`.
+pub(super) const LEAF_ALONG_SIDE: f32 = 0.45;
+/// The margin lies where `across + LEAF_MARGIN_ALONG * along` exceeds about 0.95.
+pub(super) const LEAF_MARGIN_ALONG: f32 = 0.9;
+/// Half-widths of the midrib (in `across`) and of the main veins (in [`LeafCoords::vein`]).
+pub(super) const MIDRIB_HALF_WIDTH: f32 = 0.035;
+pub(super) const VEIN_HALF_WIDTH: f32 = 0.025;
+
+/// Where a point lies on a leaf: across the blade from the midrib and along it from the
+/// petiole end (barycentric units), and the leaf's flecks there.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LeafCoords {
+    pub across: f32,
+    pub along: f32,
+}
+
+impl LeafCoords {
+    pub fn new(s: &Surface) -> Self {
+        let (tip, side) = if s.k.tip == 1 { (1, 2) } else { (2, 1) };
+        Self {
+            across: s.w[side],
+            along: s.w[tip] + LEAF_ALONG_SIDE * s.w[side],
+        }
+    }
+
+    /// The flecks' value noise, lattice cells `1 / 14` along and `1 / 9` across.
+    pub fn fleck(&self, tone: f32) -> f32 {
+        noise2(self.along * 14.0, self.across * 9.0 + tone * 50.0, 42)
+    }
+
+    /// Distance (about, in `across` units) from the nearer of the two main veins each side,
+    /// which spread from the base.
+    pub fn vein(&self) -> f32 {
+        let angle = self.across / (self.along + 0.08);
+        (angle - 0.55).abs().min((angle - 1.3).abs()) * (self.along + 0.1)
+    }
+
+    /// Positive on the margin (serrated by the flecks).
+    pub fn margin(&self, fleck: f32) -> f32 {
+        self.across + LEAF_MARGIN_ALONG * self.along - (0.95 + 0.05 * fleck)
+    }
+}
+
+/// The leaf's blade colour (sRGB) for its tone and flecks.
+pub(super) fn leaf_blade(tone: f32, fleck: f32) -> [f32; 3] {
+    scale(
+        mix([0.22, 0.40, 0.10], [0.42, 0.52, 0.16], tone),
+        0.9 + 0.2 * fleck,
+    )
+}
+
+pub(super) fn leaf_midrib(blade: [f32; 3]) -> [f32; 3] {
+    mix(blade, [0.62, 0.70, 0.36], 0.75)
+}
+
+pub(super) fn leaf_vein(blade: [f32; 3]) -> [f32; 3] {
+    mix(blade, [0.55, 0.64, 0.30], 0.55)
+}
+
+/// The margin is slightly darker, the underside paler.
+pub(super) fn leaf_finish(c: [f32; 3], margin: bool, back: bool) -> [f32; 3] {
+    let c = if margin { scale(c, 0.8) } else { c };
+    if back {
+        mix(c, [0.62, 0.66, 0.52], 0.35)
+    } else {
+        c
+    }
+}
+
 /// A vine leaf: green varying from leaf to leaf (a function of the plant-local position,
 /// so clones match), a lighter midrib and palmate main veins, paler underside.
 fn leaf(s: &Surface) -> [f32; 3] {
-    let (tip, side) = if s.k.tip == 1 { (1, 2) } else { (2, 1) };
-    let across = s.w[side];
-    let along = s.w[tip] + 0.45 * s.w[side];
+    let p = LeafCoords::new(s);
     // One tone per leaf, flecks on the blade.
-    let tone = s.k.tone;
-    let fleck = noise2(along * 14.0, across * 9.0 + tone * 50.0, 42);
-    let mut c = mix([0.22, 0.40, 0.10], [0.42, 0.52, 0.16], tone);
-    c = scale(c, 0.9 + 0.2 * fleck);
+    let fleck = p.fleck(s.k.tone);
+    let blade = leaf_blade(s.k.tone, fleck);
     // Veins: the midrib (across = 0) and two main veins each side spreading from the base.
-    let angle = across / (along + 0.08);
-    let vein = (angle - 0.55).abs().min((angle - 1.3).abs()) * (along + 0.1);
-    if across < 0.035 {
-        c = mix(c, [0.62, 0.70, 0.36], 0.75);
-    } else if vein < 0.025 {
-        c = mix(c, [0.55, 0.64, 0.30], 0.55);
-    }
+    let c = if p.across < MIDRIB_HALF_WIDTH {
+        leaf_midrib(blade)
+    } else if p.vein() < VEIN_HALF_WIDTH {
+        leaf_vein(blade)
+    } else {
+        blade
+    };
     // Margin: slightly darker, serrated by noise.
-    if across + 0.9 * along > 0.95 + 0.05 * fleck {
-        c = scale(c, 0.8);
-    }
-    if s.back {
-        c = mix(c, [0.62, 0.66, 0.52], 0.35);
-    }
-    c
+    leaf_finish(c, p.margin(fleck) > 0.0, s.back)
 }
 
 /// Distant trees above the horizon, seen in the unit direction `d` (world frame): their
-/// crown line height (elevation sine) and colour, or `None` where there is sky.
+/// colour (sRGB), or `None` where there is sky.
 pub(crate) fn tree_line(d: &[f32; 3]) -> Option<[f32; 3]> {
+    let (x, y, crown) = tree_crown(d)?;
+    if d[2] > crown {
+        return None;
+    }
+    let leaf = noise2(x * 25.0, y * 25.0 + d[2] * 600.0, 83);
+    Some(tree_colour(leaf))
+}
+
+/// The tree line's coordinates `(x, y)` in the direction `d` (30 per radian of azimuth)
+/// and its crown height (elevation sine) there; `None` far from the horizon.
+pub(super) fn tree_crown(d: &[f32; 3]) -> Option<(f32, f32, f32)> {
     if d[2] > 0.03 || d[2] < -0.05 {
         return None;
     }
     let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-6);
     let (x, y) = (d[0] / h * 30.0, d[1] / h * 30.0);
     let crown = 0.006 + 0.012 * noise2(x, y, 81) + 0.008 * noise2(x * 5.0, y * 5.0, 82);
-    if d[2] > crown {
-        return None;
-    }
-    let leaf = noise2(x * 25.0, y * 25.0 + d[2] * 600.0, 83);
-    Some(scale([0.30, 0.38, 0.30], 0.8 + 0.3 * leaf))
+    Some((x, y, crown))
+}
+
+/// The trees' colour (sRGB) at their foliage noise `leaf`.
+pub(super) fn tree_colour(leaf: f32) -> [f32; 3] {
+    scale([0.30, 0.38, 0.30], 0.8 + 0.3 * leaf)
 }
 
 /// A bunch of dark purple berries with a whitish bloom; one berry per 1.6 cm cell.
-fn grape(t: [f32; 3]) -> [f32; 3] {
+pub(super) fn grape(t: [f32; 3]) -> [f32; 3] {
     let g = t.map(|c| c / 0.016);
     let fl = g.map(floor);
     let f = fl.map(|c| c.0);
@@ -227,11 +342,24 @@ fn grape(t: [f32; 3]) -> [f32; 3] {
     ]
 }
 
-/// Wooden posts (treated pine): grey-brown with grain along the post and cracks.
+/// Post colour (sRGB) before grain and knots.
+pub(super) const POST_BASE: [f32; 3] = [0.55, 0.50, 0.42];
+
+/// A post's grain (lattice cells 1/160 m across, 1/6 m along the post) and knots (1/12 m).
+pub(super) fn post_grain(t: [f32; 3]) -> f32 {
+    noise3([t[0] * 160.0, t[1] * 160.0, t[2] * 6.0], 61)
+}
+
+pub(super) fn post_knots(t: [f32; 3]) -> f32 {
+    noise3(t.map(|c| c * 12.0), 62)
+}
+
+/// Wooden posts (treated pine): grey-brown with grain along the post, cracks along the
+/// grain (where it is near 0.5) and knots (where their noise exceeds 0.8).
 fn post(t: [f32; 3]) -> [f32; 3] {
-    let grain = noise3([t[0] * 160.0, t[1] * 160.0, t[2] * 6.0], 61);
-    let knots = noise3(t.map(|c| c * 12.0), 62);
-    let mut c = scale([0.55, 0.50, 0.42], 0.82 + 0.25 * grain);
+    let grain = post_grain(t);
+    let knots = post_knots(t);
+    let mut c = scale(POST_BASE, 0.82 + 0.25 * grain);
     if (grain - 0.5).abs() < 0.03 {
         c = scale(c, 0.6);
     }
@@ -241,8 +369,9 @@ fn post(t: [f32; 3]) -> [f32; 3] {
     c
 }
 
-/// Galvanised wire: light grey with a faint sheen variation.
-fn wire(t: [f32; 3]) -> [f32; 3] {
+/// Galvanised wire: light grey with a faint sheen variation (20 cm cells: nothing to
+/// filter).
+pub(super) fn wire(t: [f32; 3]) -> [f32; 3] {
     let n = noise3(t.map(|c| c * 5.0), 71);
     scale([0.72, 0.73, 0.75], 0.85 + 0.2 * n)
 }

@@ -1,0 +1,119 @@
+//! Multisample resolve: a pixel's colour from its visibility samples, each distinct
+//! triangle among them shaded once (Akeley 1993, "RealityEngine graphics"; the MSAA of
+//! every GPU since): at the centroid of the samples it covers, so that a triangle is never
+//! shaded outside itself (OpenGL's `centroid` sampling), weighted by the share of the samples
+//! it covers, and summed in linear light. A pixel whose samples all see one triangle is
+//! shaded once at its centre, exactly as without anti-aliasing.
+//!
+//! Depth is not averaged. A time-of-flight pixel at an edge mixes the returns of both
+//! surfaces into a range between them, or beyond (the Kinect v2's "flying pixels", which its
+//! driver removes: libfreenect2's edge-aware filter); an average would invent exactly those
+//! points, in space where there is nothing. The depth of a pixel is instead that of the
+//! surface covering most of its samples (ties to the nearer), along the pixel's central ray
+//! through that surface's plane: a point of a real surface, within half a pixel of where the
+//! surface is seen, and the same depth the single-sample renderer gives wherever the
+//! surface covers the pixel centre. Sky (no surface) wins only a majority: then the pixel
+//! has no return (0). What the driver then drops at depth edges is
+//! `depth_noise`'s edge dropout.
+
+use super::shading::{Shaded, Shader};
+
+/// The largest pattern (8 samples).
+const MAX_SAMPLES: usize = 8;
+
+/// The pixel at column `u` of row `v` from its samples: `ids[s]` and `q[s]` (1 / z, 0 for
+/// none) of the sample at offset `pattern[s]`.
+pub(crate) fn resolve(
+    shader: &Shader<'_>,
+    pattern: &[[f32; 2]],
+    (x, y): (f32, f32),
+    ids: &[u32],
+    q: &[f32],
+) -> Shaded {
+    let n = pattern.len();
+    let first = ids[0];
+    if ids[1..n].iter().all(|&id| id == first) {
+        // One triangle (or sky) in every sample: shaded at the centre, the offsets' mean.
+        let mean_q = q[..n].iter().sum::<f32>() / n as f32;
+        return shader.shade(x, y, first, mean_q);
+    }
+    // The distinct triangles: id, samples covered, sums of their offsets and of their q.
+    let mut id = [u32::MAX; MAX_SAMPLES];
+    let mut count = [0u32; MAX_SAMPLES];
+    let mut sum = [[0.0f32; 3]; MAX_SAMPLES];
+    let mut groups = 0;
+    for (s, (&sid, &[dx, dy])) in ids.iter().zip(pattern).enumerate() {
+        let g = id[..groups]
+            .iter()
+            .position(|&i| i == sid)
+            .unwrap_or_else(|| {
+                id[groups] = sid;
+                groups += 1;
+                groups - 1
+            });
+        count[g] += 1;
+        sum[g] = [sum[g][0] + dx, sum[g][1] + dy, sum[g][2] + q[s]];
+    }
+    let weight = 1.0 / n as f32;
+    let mut rgb = [0.0f32; 3];
+    // The majority: most samples, then nearest (largest 1 / z; sky's is 0), then the
+    // smaller id (the groups are in sample order, so only a strict win replaces).
+    let (mut best, mut best_key) = (0, (0u32, f32::NEG_INFINITY));
+    let mut best_shaded = None;
+    for g in 0..groups {
+        let c = count[g] as f32;
+        let inv = 1.0 / c;
+        let centroid = (x + sum[g][0] * inv, y + sum[g][1] * inv);
+        let mean_q = sum[g][2] * inv;
+        let s = shader.shade(centroid.0, centroid.1, id[g], mean_q);
+        let w = c * weight;
+        for (acc, c) in rgb.iter_mut().zip(s.rgb) {
+            *acc += c * w;
+        }
+        let key = (count[g], mean_q);
+        let wins = key.0 > best_key.0
+            || (key.0 == best_key.0
+                && (key.1 > best_key.1 || (key.1 == best_key.1 && id[g] < id[best])));
+        if g == 0 || wins {
+            (best, best_key, best_shaded) = (g, key, Some(s));
+        }
+    }
+    let majority = best_shaded.expect("a pixel has at least one sample");
+    let (depth, cos_incidence) = if id[best] == u32::MAX {
+        (0.0, 0.0)
+    } else {
+        shader.depth_at(x, y, id[best], (majority.depth, majority.cos_incidence))
+    };
+    Shaded {
+        rgb,
+        depth,
+        cos_incidence,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::raster::{SAMPLES_4, SAMPLES_8};
+
+    #[test]
+    fn patterns_are_centred_with_a_row_and_a_column_per_sample() {
+        for pattern in [&SAMPLES_4[..], &SAMPLES_8[..]] {
+            let (sx, sy) = pattern
+                .iter()
+                .fold((0.0, 0.0), |(x, y), o| (x + o[0], y + o[1]));
+            assert_eq!((sx, sy), (0.0, 0.0), "expected offsets summing to zero");
+            for (i, a) in pattern.iter().enumerate() {
+                assert!(
+                    a[0].abs() < 0.5 && a[1].abs() < 0.5,
+                    "{a:?} outside the pixel"
+                );
+                for b in &pattern[i + 1..] {
+                    assert!(
+                        a[0] != b[0] && a[1] != b[1],
+                        "expected {a:?} and {b:?} on distinct rows and columns"
+                    );
+                }
+            }
+        }
+    }
+}
