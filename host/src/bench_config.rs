@@ -72,6 +72,10 @@ fn default_scenarios() -> Vec<String> {
     ["s0", "s1", "s2", "s3"].map(str::to_owned).to_vec()
 }
 
+fn default_share() -> bool {
+    true
+}
+
 fn default_timeout() -> f64 {
     3600.0
 }
@@ -107,6 +111,11 @@ pub struct BenchConfig {
     /// Cut every route at this simulated time, seconds (default: whole routes, as the
     /// paper ran them); `--max-time` overrides it.
     pub max_time_s: Option<f64>,
+    /// Simulate each scenario once for the runs that need the same sensors (the camera's
+    /// runs together, the lidar's together) and stream it to their workers, instead of
+    /// once per run (default). The data are the same either way.
+    #[serde(default = "default_share")]
+    pub share_simulation: bool,
     pub plugins: Vec<PluginEntry>,
 }
 

@@ -467,6 +467,77 @@ fn faulty_plugins_cost_their_own_run_only() {
     }
 }
 
+/// One simulation feeds the runs of a scenario that need the same sensors: two lio-sam
+/// runs share one lidar simulation, the two odometry baselines another, and every file
+/// they write is the same, byte for byte, as when each run simulates for itself.
+#[test]
+fn a_shared_simulation_gives_every_run_its_own_data() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let entry = |label: &str, lib: &str, params: &str| {
+        format!(
+            "[[plugins]]\npath = \"{}\"\nlabel = \"{label}\"\n[plugins.params]\n{params}\n",
+            plugin_lib(lib).display()
+        )
+    };
+    let plugins = [
+        entry("lio-a", "lio_sam", ""),
+        entry("odom", "wheel_odometry", "yaw_source = \"wheels\""),
+        entry("lio-b", "lio_sam", "use_imu = false"),
+        entry("odom-imu", "wheel_odometry", "yaw_source = \"imu\""),
+    ]
+    .concat();
+    let head = "scenarios = [\"s1\"]\nseed = 4\njobs = 2\nmax_time_s = 12.0\n";
+    let (o, shared) = run_bench(tmp.path(), "shared", &format!("{head}{plugins}"));
+    assert!(
+        o.status.success(),
+        "shared bench failed: {}",
+        text(&o.stderr)
+    );
+    let (o, own) = run_bench(
+        tmp.path(),
+        "own",
+        &format!("{head}share_simulation = false\n{plugins}"),
+    );
+    assert!(
+        o.status.success(),
+        "unshared bench failed: {}",
+        text(&o.stderr)
+    );
+    for label in ["lio-a", "lio-b", "odom", "odom-imu"] {
+        let run = |out: &Path| out.join("s1").join(label);
+        assert_eq!(
+            json(&run(&shared).join("timing.json"))["source"],
+            "shared simulation",
+            "{label} was fed by its group's simulation"
+        );
+        assert_eq!(json(&run(&own).join("timing.json"))["source"], "simulation");
+        for f in [
+            "groundtruth.tum",
+            "estimate.tum",
+            "online.tum",
+            "events.json",
+            "metrics.json",
+        ] {
+            let (a, b) = (run(&shared).join(f), run(&own).join(f));
+            if !a.exists() && !b.exists() {
+                continue;
+            }
+            let (a, b) = (
+                std::fs::read(a).expect("shared file"),
+                std::fs::read(b).expect("own file"),
+            );
+            assert!(
+                a == b,
+                "s1/{label}/{f} differs between shared and own simulation"
+            );
+        }
+    }
+    let ate = json(&shared.join("table.json"))["s1"]["lio-a"]["rmse"]
+        .as_f64()
+        .expect("lio-sam scored");
+    assert!(ate > 0.0 && ate < 0.5, "lio-sam on 12 s of s1: ATE {ate} m");
+}
+
 /// A bad matrix file (a misspelt key, a route limit that is not positive) or a missing
 /// plugin is one line naming the culprit, and no results.
 #[test]

@@ -89,6 +89,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         alignment: cfg.align.into(),
         dataset: None,
         max_time_s: max_time_s.or(cfg.max_time_s),
+        share_simulation: cfg.share_simulation,
     };
     report(&plan).map(drop)
 }

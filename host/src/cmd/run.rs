@@ -89,6 +89,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         alignment: align.into(),
         dataset: args.dataset.clone(),
         max_time_s,
+        // One run: nothing to share.
+        share_simulation: false,
     };
     let executed = crate::cmd::bench::report(&plan)?;
     // One run: its failure is the command's failure (the results folder is still written).

@@ -1,5 +1,7 @@
 //! `vinebench worker --job FILE` (hidden): one run in its own process, started by the
-//! supervisor of `run` and `bench`.
+//! supervisor of `run` and `bench`. `vinebench worker --sensors PLUGIN` prints the sensors
+//! a plugin asks for, so the supervisor can share one simulation between runs without
+//! loading any plugin into its own process.
 
 use std::path::PathBuf;
 
@@ -11,13 +13,30 @@ use crate::runner::{Job, worker};
 #[derive(Debug, Args)]
 pub struct WorkerArgs {
     /// The job file written by the supervisor.
-    #[arg(long)]
-    pub job: PathBuf,
+    #[arg(long, required_unless_present = "sensors")]
+    pub job: Option<PathBuf>,
+    /// Print the sensors this plugin library asks for (one line, comma-separated) and exit.
+    #[arg(long, conflicts_with = "job")]
+    pub sensors: Option<PathBuf>,
 }
 
 pub fn run(args: &WorkerArgs) -> anyhow::Result<()> {
-    let text =
-        std::fs::read_to_string(&args.job).with_context(|| args.job.display().to_string())?;
-    let job: Job = serde_json::from_str(&text).with_context(|| args.job.display().to_string())?;
+    if let Some(plugin) = &args.sensors {
+        let loaded = plugin_api::load(plugin)?;
+        let names: Vec<&str> = loaded
+            .requirements
+            .sensors
+            .iter()
+            .map(|k| k.name())
+            .collect();
+        println!("{}", names.join(","));
+        return Ok(());
+    }
+    let path = args
+        .job
+        .as_ref()
+        .expect("clap requires --job without --sensors");
+    let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    let job: Job = serde_json::from_str(&text).with_context(|| path.display().to_string())?;
     worker::work(&job)
 }

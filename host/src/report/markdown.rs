@@ -10,7 +10,8 @@ use std::fmt::Write as _;
 use super::table::Table;
 
 const CAPTION: &str = "APE translation after alignment in metres; \
-    RTF: real-time factor (simulated seconds per wall second); \
+    RTF: the system's real-time factor (simulated seconds per second spent in its calls, \
+    finish included; the simulator's time is not counted); \
     loops: loop closures accepted; false loops: of those, the ones ground truth shows \
     false (a measured relative pose off by more than 0.5 m or 10°; without one, poses more \
     than 1 m apart).";

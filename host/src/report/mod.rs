@@ -72,8 +72,9 @@ pub struct ScenarioTruth {
 ///
 /// Files:
 /// - `table.md`, `table.csv`, `table.tex`: the paper's Table 2 layout. Rows `max`, `mean`,
-///   `median`, `rmse`, `std` (metres, 3 decimals), `RTF` (real-time factor,
-///   1 decimal), `loops` (loop closures accepted) and `false loops` (of those, the ones
+///   `median`, `rmse`, `std` (metres, 3 decimals), `RTF` (the system's real-time factor: simulated seconds per
+///   second spent in its calls, `finish` included, so the same whether or not its
+///   simulation was shared; 1 decimal), `loops` (loop closures accepted) and `false loops` (of those, the ones
 ///   ground truth shows false: a measured relative pose off by more than 0.5 m or 10°, or
 ///   without one, joining poses more than 1 m apart); one column per
 ///   (scenario, plugin) run, all systems of the first

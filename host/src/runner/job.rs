@@ -27,6 +27,10 @@ pub struct Job {
     /// truth and evaluation then cover the route up to there. `None`: the whole route.
     #[serde(default)]
     pub max_time_s: Option<f64>,
+    /// Read the messages from stdin, streamed by the supervisor's shared simulation of the
+    /// scenario ([`super::feed`]), instead of simulating here.
+    #[serde(default)]
+    pub fed: bool,
 }
 
 /// File names inside a run folder.

@@ -3,6 +3,7 @@
 //! under a temporary name and moved into place when complete.
 
 mod evaluate;
+pub mod feed;
 pub mod job;
 mod loops;
 mod outputs;
@@ -10,9 +11,9 @@ mod supervise;
 mod timing;
 pub mod worker;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Condvar, Mutex};
 use std::time::Duration;
 
 use anyhow::Context as _;
@@ -52,6 +53,9 @@ pub struct Plan {
     pub dataset: Option<PathBuf>,
     /// Cut every route at this simulated time, seconds; `None`: whole routes.
     pub max_time_s: Option<f64>,
+    /// Feed the runs of a scenario that need the same sensors from one simulation
+    /// ([`feed`]) instead of one per run.
+    pub share_simulation: bool,
 }
 
 /// What came out of a whole matrix.
@@ -161,9 +165,19 @@ fn run_all(
     let style = ProgressStyle::with_template("{prefix:>28} [{bar:30}] {percent:>3}% {msg}")
         .expect("valid template")
         .progress_chars("=> ");
+    // Route lengths in samples of the ground truth above (one per 0.1 s).
+    let lengths: Vec<i64> = truths
+        .iter()
+        .map(|t| t.groundtruth_xy.len() as i64)
+        .collect();
+    let groups = group_runs(plan, &lengths);
+    let mut fed = vec![false; plan.runs.len()];
+    for g in groups.iter().filter(|g| g.shared) {
+        g.runs.iter().for_each(|&i| fed[i] = true);
+    }
     let mut dirs = Vec::with_capacity(plan.runs.len());
     let mut progress = Vec::with_capacity(plan.runs.len());
-    for run in &plan.runs {
+    for (i, run) in plan.runs.iter().enumerate() {
         let dir = std::path::absolute(tmp.join(&run.scenario).join(&run.label))?;
         std::fs::create_dir_all(&dir)?;
         let job = Job {
@@ -177,6 +191,7 @@ fn run_all(
             memory_limit_mb: plan.memory_limit_mb,
             dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
             max_time_s: plan.max_time_s,
+            fed: fed[i],
         };
         worker::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));
@@ -185,16 +200,31 @@ fn run_all(
         progress.push(bar);
     }
 
-    let next = AtomicUsize::new(0);
+    // Groups start in order as soon as enough of the `jobs` slots are free; each run gives
+    // its slot back when it ends.
     let records: Mutex<Vec<Option<RunRecord>>> = Mutex::new(vec![None; plan.runs.len()]);
+    let free = (Mutex::new(plan.jobs.max(1)), Condvar::new());
+    let release = || {
+        *free.0.lock().expect("no panics while holding the lock") += 1;
+        free.1.notify_all();
+    };
+    let world = &world;
     std::thread::scope(|scope| {
-        for _ in 0..plan.jobs.clamp(1, plan.runs.len().max(1)) {
-            scope.spawn(|| {
-                loop {
-                    let i = next.fetch_add(1, Ordering::SeqCst);
-                    let Some(run) = plan.runs.get(i) else { break };
+        for group in &groups {
+            let need = group.runs.len().min(plan.jobs.max(1));
+            let mut slots = free.0.lock().expect("no panics while holding the lock");
+            while *slots < need {
+                slots = free
+                    .1
+                    .wait(slots)
+                    .expect("no panics while holding the lock");
+            }
+            *slots -= need;
+            drop(slots);
+            let (dirs, progress, records, release) = (&dirs, &progress, &records, &release);
+            scope.spawn(move || {
+                let done = |i: usize, record: RunRecord| {
                     let bar = &progress[i];
-                    let record = run_one(run, &dirs[i], plan, bar);
                     match &record.status {
                         RunStatus::Ok => bar.finish_with_message("ok"),
                         RunStatus::Failed(why) => {
@@ -202,6 +232,15 @@ fn run_all(
                         }
                     }
                     records.lock().expect("no panics while holding the lock")[i] = Some(record);
+                    release();
+                };
+                if group.shared {
+                    run_shared(group, plan, config, world, dirs, progress, &done);
+                } else {
+                    for &i in &group.runs {
+                        let record = run_one(&plan.runs[i], &dirs[i], plan, &progress[i]);
+                        done(i, record);
+                    }
                 }
             });
         }
@@ -215,7 +254,221 @@ fn run_all(
     Ok((records, truths))
 }
 
+/// Runs that are started together; `shared`: fed by one simulation in this process.
+#[derive(Debug, Clone, PartialEq)]
+struct Group {
+    runs: Vec<usize>,
+    shared: bool,
+    sensors: Vec<sim::SensorSet>,
+}
+
+/// A worker that takes no message for this long is cut off from its group's simulation
+/// (at most the run's timeout).
+const STALL: Duration = Duration::from_secs(300);
+
+/// Which runs share a simulation, in the order they start.
+///
+/// With sharing on (no dataset), the runs of one scenario whose plugins need the same
+/// expensive sensor (the camera; else the 3D lidar; else neither) are fed by one simulation,
+/// in groups of at most `jobs` so that every run keeps a core as it would alone. The
+/// camera's groups start first, then the lidar's, longest routes first, so that the long
+/// runs do not end up alone at the end. A plugin whose sensors cannot be read (it fails to
+/// load) runs alone, to fail in its own worker.
+fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
+    let jobs = plan.jobs.max(1);
+    let share = plan.share_simulation && plan.dataset.is_none();
+    let mut probed: BTreeMap<&Path, Option<sim::SensorSet>> = BTreeMap::new();
+    let sensors: Vec<Option<sim::SensorSet>> = plan
+        .runs
+        .iter()
+        .map(|r| {
+            if !share {
+                return None;
+            }
+            *probed
+                .entry(r.plugin.as_path())
+                .or_insert_with(|| probe_sensors(&r.plugin))
+        })
+        .collect();
+    let scenario_len = |s: &str| {
+        plan.scenarios
+            .iter()
+            .position(|x| x == s)
+            .and_then(|k| lengths.get(k))
+            .copied()
+            .unwrap_or(0)
+    };
+    // (camera, lidar, route length, scenario): runs with the same key may share.
+    let mut keyed: BTreeMap<(bool, bool, i64, &str), Vec<usize>> = BTreeMap::new();
+    let mut groups = Vec::new();
+    for (i, run) in plan.runs.iter().enumerate() {
+        match sensors[i] {
+            Some(set) => keyed
+                .entry((
+                    !set.rgbd,
+                    !set.lidar,
+                    -scenario_len(&run.scenario),
+                    &run.scenario,
+                ))
+                .or_default()
+                .push(i),
+            None => groups.push(Group {
+                runs: vec![i],
+                shared: false,
+                sensors: Vec::new(),
+            }),
+        }
+    }
+    let mut shared: Vec<Group> = keyed
+        .into_values()
+        .flat_map(|runs| {
+            runs.chunks(jobs)
+                .map(|c| Group {
+                    runs: c.to_vec(),
+                    // A run alone simulates in its own worker, as without sharing.
+                    shared: c.len() > 1,
+                    sensors: c.iter().map(|&i| sensors[i].expect("keyed")).collect(),
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    shared.append(&mut groups);
+    shared
+}
+
+/// The sensors a plugin library asks for, read in a child process (`vinebench worker
+/// --sensors`) so that no plugin is ever loaded into the supervisor; `None` if that fails.
+fn probe_sensors(plugin: &Path) -> Option<sim::SensorSet> {
+    let exe = std::env::current_exe().ok()?;
+    let mut child = std::process::Command::new(exe)
+        .arg("worker")
+        .arg("--sensors")
+        .arg(plugin)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .ok()?;
+    let started = std::time::Instant::now();
+    loop {
+        match child.try_wait() {
+            Ok(Some(status)) if status.success() => break,
+            Ok(None) if started.elapsed() < Duration::from_secs(60) => {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            _ => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return None;
+            }
+        }
+    }
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take()?, &mut out).ok()?;
+    let mut kinds = Vec::new();
+    for name in out.trim().split(',').filter(|n| !n.is_empty()) {
+        kinds.push(
+            *plugin_api::SensorKind::ALL
+                .iter()
+                .find(|k| k.name() == name)?,
+        );
+    }
+    Some(worker::sensor_set(&kinds))
+}
+
+/// Runs a group's workers together, fed by one simulation of their scenario.
+fn run_shared(
+    group: &Group,
+    plan: &Plan,
+    config: &sim::SimConfig,
+    world: &sim::world::World,
+    dirs: &[PathBuf],
+    progress: &[ProgressBar],
+    done: &(dyn Fn(usize, RunRecord) + Sync),
+) {
+    let scenario = &plan.runs[group.runs[0]].scenario;
+    // Start every worker; one that cannot start fails alone.
+    let mut started = Vec::new();
+    let mut subscribers = Vec::new();
+    for (k, &i) in group.runs.iter().enumerate() {
+        match supervise::spawn(&dirs[i], true) {
+            Ok((child, Some(stdin))) => {
+                started.push((i, child));
+                subscribers.push(feed::Subscriber {
+                    sensors: group.sensors[k],
+                    input: stdin,
+                });
+            }
+            Ok((mut child, None)) => {
+                let _ = child.kill();
+                let _ = child.wait();
+                done(
+                    i,
+                    finish_run(&plan.runs[i], &dirs[i], plan, Err("no stdin".into())),
+                );
+            }
+            Err(why) => done(i, finish_run(&plan.runs[i], &dirs[i], plan, Err(why))),
+        }
+    }
+    let simulation = sim::Simulation::with_world(config, world.clone(), scenario, plan.seed);
+    let end_ns = plan.max_time_s.map(|s| (s * 1e9).round() as i64);
+    let stall = STALL.min(plan.timeout);
+    std::thread::scope(|scope| {
+        let feeding = scope.spawn(move || match simulation {
+            Ok(sim) => feed::Feed { end_ns, stall }.run(&sim, subscribers),
+            Err(e) => Err(format!("{e}")),
+        });
+        let watched: Vec<_> = started
+            .into_iter()
+            .map(|(i, child)| {
+                let bar = &progress[i];
+                scope.spawn(move || {
+                    let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
+                    let outcome = supervise::watch(
+                        child,
+                        &dirs[i],
+                        plan.timeout,
+                        plan.memory_limit_mb,
+                        &on_progress,
+                    );
+                    (i, outcome)
+                })
+            })
+            .collect();
+        let outcomes: Vec<(usize, Result<(), String>)> = watched
+            .into_iter()
+            .map(|w| w.join().expect("a watcher does not panic"))
+            .collect();
+        let deliveries = feeding
+            .join()
+            .map_err(|_| "the simulation panicked".to_owned());
+        for (k, (i, outcome)) in outcomes.into_iter().enumerate() {
+            let outcome = match (&deliveries, outcome) {
+                (Ok(Ok(d)), Err(why)) => match d.get(k) {
+                    Some(feed::Delivery::Stalled { .. }) => Err(format!(
+                        "{why} (it took no data for {} s and was cut off from the shared simulation)",
+                        stall.as_secs()
+                    )),
+                    _ => Err(why),
+                },
+                (Ok(Err(sim_failed)) | Err(sim_failed), Err(why)) => Err(format!(
+                    "{why} (the shared simulation failed: {sim_failed})"
+                )),
+                (_, Ok(())) => Ok(()),
+            };
+            done(i, finish_run(&plan.runs[i], &dirs[i], plan, outcome));
+        }
+    });
+}
+
 fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunRecord {
+    let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
+    let outcome = supervise::supervise(dir, plan.timeout, plan.memory_limit_mb, &on_progress);
+    finish_run(run, dir, plan, outcome)
+}
+
+/// A run's record once its worker has ended: scored if it succeeded.
+fn finish_run(run: &PlannedRun, dir: &Path, plan: &Plan, outcome: Result<(), String>) -> RunRecord {
     let failed = |why: String| RunRecord {
         scenario: run.scenario.clone(),
         plugin: run.label.clone(),
@@ -226,8 +479,6 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
         estimate_xy: Vec::new(),
         max_time_s: plan.max_time_s,
     };
-    let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
-    let outcome = supervise::supervise(dir, plan.timeout, plan.memory_limit_mb, &on_progress);
     // The order held a temporary path; run.toml keeps what determined the run.
     let _ = std::fs::remove_file(dir.join(files::JOB));
     if let Err(why) = outcome {
@@ -240,7 +491,9 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
     let realtime_factor = std::fs::read_to_string(dir.join(files::TIMING))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v["realtime_factor"].as_f64());
+        // The system's own speed: a shared simulation sets the pace of its whole group,
+        // and the simulator's time is not the system's.
+        .and_then(|v| v["realtime_factor_plugin"].as_f64());
     RunRecord {
         scenario: run.scenario.clone(),
         plugin: run.label.clone(),

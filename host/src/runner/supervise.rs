@@ -5,7 +5,7 @@
 use std::io::{BufRead, BufReader};
 use std::os::unix::process::ExitStatusExt;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::{Child, ChildStdin, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use super::job::files;
@@ -21,6 +21,14 @@ pub fn supervise(
     memory_limit_mb: u64,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(), String> {
+    let (child, _) = spawn(run_dir, false)?;
+    watch(child, run_dir, timeout, memory_limit_mb, progress)
+}
+
+/// Starts the worker on the job file in `run_dir` (absolute), in that folder. With `fed`,
+/// its stdin is a pipe, returned for the caller to stream the simulation into
+/// ([`super::feed`]); otherwise it reads nothing.
+pub fn spawn(run_dir: &Path, fed: bool) -> Result<(Child, Option<ChildStdin>), String> {
     let exe = std::env::current_exe()
         .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
     let log_path = run_dir.join(files::LOG);
@@ -33,11 +41,25 @@ pub fn supervise(
         .arg("worker")
         .arg("--job")
         .arg(run_dir.join(files::JOB))
-        .stdin(Stdio::null())
+        .stdin(if fed { Stdio::piped() } else { Stdio::null() })
         .stdout(Stdio::piped())
         .stderr(log)
         .spawn()
         .map_err(|e| format!("cannot start the worker process: {e}"))?;
+    let stdin = child.stdin.take();
+    Ok((child, stdin))
+}
+
+/// Watches a worker started by [`spawn`] until it ends, killing it at `timeout`; `Err` is
+/// the failure reason.
+pub fn watch(
+    mut child: Child,
+    run_dir: &Path,
+    timeout: Duration,
+    memory_limit_mb: u64,
+    progress: &(dyn Fn(f64) + Sync),
+) -> Result<(), String> {
+    let log_path = run_dir.join(files::LOG);
     let stdout = child.stdout.take().expect("stdout is piped");
     let started = Instant::now();
     std::thread::scope(|scope| {

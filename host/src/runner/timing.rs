@@ -26,6 +26,9 @@ pub struct Latency {
 /// timing.json.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TimingReport {
+    /// Where the messages came from: `simulation` (the worker's own), `shared simulation`
+    /// (the supervisor's, streamed to several workers) or `dataset`.
+    pub source: &'static str,
     pub simulated_s: f64,
     pub wall_s: f64,
     pub plugin_s: f64,
@@ -81,6 +84,7 @@ impl Timing {
         }
         let plugin_s = plugin_ns as f64 * 1e-9;
         TimingReport {
+            source: "simulation",
             simulated_s,
             wall_s,
             plugin_s,

@@ -15,11 +15,9 @@ use plugin_api::{LaserScan, LidarPoint, PluginInstance, Pose, SensorKind, SlamOu
 use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
 
+use super::feed::{AHEAD, FeedReader};
 use super::job::{Job, files};
 use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
-
-/// Messages the simulator may run ahead of the plugin.
-const AHEAD: usize = 256;
 
 /// Which sensors to simulate for a plugin's requirements (ground truth always).
 pub fn sensor_set(kinds: &[SensorKind]) -> SensorSet {
@@ -62,9 +60,16 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let mut next_progress = 0;
     let mut stdout = std::io::stdout().lock();
     // Replay is checked whole before anything is fed, so a bad file fails the run cleanly.
-    let source: Box<dyn Iterator<Item = Message> + Send + '_> = match &job.dataset {
-        Some(path) => Box::new(crate::dataset::replay_messages(path, sensors)?),
-        None => Box::new(sim.stream(sensors)),
+    // A shared simulation's stream is checked as it comes: its error fails the run below.
+    let mut feed_error = None;
+    let source: Box<dyn Iterator<Item = Message> + Send + '_> = match (&job.dataset, job.fed) {
+        (Some(path), _) => Box::new(crate::dataset::replay_messages(path, sensors)?),
+        (None, true) => {
+            let reader = FeedReader::new(std::io::stdin());
+            feed_error = Some(reader.error_slot());
+            Box::new(reader)
+        }
+        (None, false) => Box::new(sim.stream(sensors)),
     };
     // The stream is in time order: a route limit cuts it, as `simulate --max-time` does.
     // Without one the stream is fed whole, as before.
@@ -109,6 +114,11 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
             .map_err(|_| anyhow!("the simulator thread panicked"))?;
         Ok(())
     })?;
+    if let Some(slot) = feed_error
+        && let Some(e) = slot.lock().expect("no panic holds this lock").take()
+    {
+        bail!("{e}");
+    }
     let call = Instant::now();
     let output = instance
         .finish()
@@ -124,7 +134,12 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let wall = started.elapsed().as_secs_f64();
     // The simulated time fed: the route up to its limit.
     let simulated = total_ns as f64 * 1e-9;
-    let report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
+    let mut report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
+    report.source = match (&job.dataset, job.fed) {
+        (Some(_), _) => "dataset",
+        (None, true) => "shared simulation",
+        (None, false) => "simulation",
+    };
     write_json(&job.out_dir.join(files::TIMING), &report)?;
     writeln!(stdout, "progress {total_ns} {total_ns}").ok();
     Ok(())

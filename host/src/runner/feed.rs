@@ -1,0 +1,723 @@
+//! One simulation feeding several workers: the supervisor simulates a scenario once, with
+//! every sensor its group of runs needs, and streams each worker (still its own process,
+//! with its own limits) the messages of its plugin's sensors over the worker's stdin.
+//!
+//! The same messages as the worker's own simulation would give, bit for bit: every sensor
+//! draws its noise from its own seeded stream (`sim::rng::stream(seed, sensor)`), so which
+//! other sensors run beside it changes nothing, and the wire format below carries every
+//! value's exact bits. `host/tests/feed.rs` checks that shared and unshared runs give the
+//! same estimates.
+//!
+//! Wire format (all little-endian): frames of `tag: u8`, `length: u64`, `payload`; the tag
+//! names the message kind, and tag [`END`] (empty payload) closes a complete stream, so a
+//! worker whose stream stops without it knows the simulation did not finish. Poses travel as
+//! translation then quaternion `(i, j, k, w)`, as f64 bits.
+//!
+//! A worker that dies stops being fed (its pipe breaks); one that takes no message for
+//! [`Feed::stall`] is cut off (it hangs: its own timeout will end it) so that the others go
+//! on. A slow worker sets the pace of its group: the simulation runs at most [`AHEAD`]
+//! messages ahead of each.
+
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use sim::camera::RgbdImage;
+use sim::sensors::{
+    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, RgbdFrame, ScanSide,
+    WheelOdometry,
+};
+use sim::{SensorSet, Simulation};
+
+/// Messages the simulation may run ahead of a worker (as in a worker's own simulation).
+pub const AHEAD: usize = 256;
+
+/// Tag of the frame that closes a complete stream.
+const END: u8 = 0;
+const GROUND_TRUTH: u8 = 1;
+const IMU: u8 = 2;
+const ODOMETRY: u8 = 3;
+const LIDAR: u8 = 4;
+const SCAN_FRONT: u8 = 5;
+const SCAN_BACK: u8 = 6;
+const RGBD: u8 = 7;
+
+/// Largest payload a reader accepts (a 4K RGB-D frame is about 60 MB).
+const MAX_PAYLOAD: u64 = 1 << 30;
+
+/// Whether `sensors` includes the sensor of `message`.
+pub fn wants(sensors: &SensorSet, message: &Message) -> bool {
+    match message {
+        Message::GroundTruth(_) => sensors.ground_truth,
+        Message::Imu(_) => sensors.imu,
+        Message::WheelOdometry(_) => sensors.wheel_odometry,
+        Message::Lidar(_) => sensors.lidar,
+        Message::Scan2d(_) => sensors.scan2d,
+        Message::Rgbd(_) => sensors.rgbd,
+    }
+}
+
+/// Every sensor of any of the sets.
+pub fn union(sets: &[SensorSet]) -> SensorSet {
+    sets.iter().fold(SensorSet::default(), |a, b| SensorSet {
+        ground_truth: a.ground_truth | b.ground_truth,
+        imu: a.imu | b.imu,
+        wheel_odometry: a.wheel_odometry | b.wheel_odometry,
+        lidar: a.lidar | b.lidar,
+        scan2d: a.scan2d | b.scan2d,
+        rgbd: a.rgbd | b.rgbd,
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Encoding
+
+#[derive(Default)]
+struct Out(Vec<u8>);
+
+impl Out {
+    fn i64(&mut self, v: i64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f64(&mut self, v: f64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn vector(&mut self, v: &Vector3<f64>) {
+        v.iter().for_each(|&c| self.f64(c));
+    }
+    fn pose(&mut self, p: &Isometry3<f64>) {
+        self.vector(&p.translation.vector);
+        p.rotation.coords.iter().for_each(|&c| self.f64(c));
+    }
+    fn f32s(&mut self, v: &[f32]) {
+        self.u64(v.len() as u64);
+        self.0.reserve(4 * v.len());
+        v.iter().for_each(|&c| self.f32(c));
+    }
+}
+
+/// One message as a frame of the wire format.
+pub fn encode(message: &Message) -> Vec<u8> {
+    let mut o = Out(Vec::with_capacity(64));
+    let tag = match message {
+        Message::GroundTruth(m) => {
+            o.i64(m.stamp_ns);
+            o.pose(&m.world_from_base);
+            o.vector(&m.velocity_in_world);
+            o.vector(&m.omega_in_base);
+            GROUND_TRUTH
+        }
+        Message::Imu(m) => {
+            o.i64(m.stamp_ns);
+            o.vector(&m.accel_mps2);
+            o.vector(&m.gyro_rps);
+            IMU
+        }
+        Message::WheelOdometry(m) => {
+            o.i64(m.stamp_ns);
+            o.f64(m.linear_mps);
+            o.f64(m.angular_rps);
+            o.pose(&m.odom_from_base);
+            ODOMETRY
+        }
+        Message::Lidar(m) => {
+            o.i64(m.stamp_ns);
+            o.i64(m.sweep_ns);
+            o.u64(m.points.len() as u64);
+            o.0.reserve(22 * m.points.len());
+            for p in &m.points {
+                [p.x, p.y, p.z, p.intensity, p.time_s]
+                    .iter()
+                    .for_each(|&c| o.f32(c));
+                o.0.extend_from_slice(&p.ring.to_le_bytes());
+            }
+            LIDAR
+        }
+        Message::Scan2d(m) => {
+            o.i64(m.stamp_ns);
+            [
+                m.angle_min_rad,
+                m.angle_increment_rad,
+                m.time_increment_s,
+                m.range_min_m,
+                m.range_max_m,
+            ]
+            .iter()
+            .for_each(|&c| o.f32(c));
+            o.f32s(&m.ranges_m);
+            o.f32s(&m.intensities);
+            match m.side {
+                ScanSide::Front => SCAN_FRONT,
+                ScanSide::Back => SCAN_BACK,
+            }
+        }
+        Message::Rgbd(m) => {
+            let image = &m.image;
+            o.i64(m.stamp_ns);
+            o.u64(image.width as u64);
+            o.u64(image.height as u64);
+            image.intrinsics.iter().for_each(|&c| o.f64(c));
+            o.u64(image.rgb.len() as u64);
+            o.0.extend_from_slice(&image.rgb);
+            o.f32s(&image.depth_m);
+            RGBD
+        }
+    };
+    frame(tag, &o.0)
+}
+
+fn frame(tag: u8, payload: &[u8]) -> Vec<u8> {
+    let mut f = Vec::with_capacity(9 + payload.len());
+    f.push(tag);
+    f.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    f.extend_from_slice(payload);
+    f
+}
+
+/// The frame that closes a complete stream.
+pub fn end_frame() -> Vec<u8> {
+    frame(END, &[])
+}
+
+// ---------------------------------------------------------------------------------------
+// Decoding
+
+/// Why a stream could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum FeedError {
+    #[error("the shared simulation stopped before the end of the route (no end mark)")]
+    Truncated,
+    #[error("malformed message from the shared simulation: {0}")]
+    Malformed(&'static str),
+    #[error("reading the shared simulation: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+struct In<'a>(&'a [u8]);
+
+impl In<'_> {
+    fn take<const N: usize>(&mut self) -> Result<[u8; N], FeedError> {
+        let (head, rest) = self
+            .0
+            .split_first_chunk::<N>()
+            .ok_or(FeedError::Malformed("payload too short"))?;
+        self.0 = rest;
+        Ok(*head)
+    }
+    fn i64(&mut self) -> Result<i64, FeedError> {
+        self.take().map(i64::from_le_bytes)
+    }
+    fn len(&mut self, bytes_each: usize) -> Result<usize, FeedError> {
+        let n = u64::from_le_bytes(self.take()?);
+        if n.saturating_mul(bytes_each as u64) > self.0.len() as u64 {
+            return Err(FeedError::Malformed("length beyond the payload"));
+        }
+        Ok(n as usize)
+    }
+    fn f64(&mut self) -> Result<f64, FeedError> {
+        self.take().map(f64::from_le_bytes)
+    }
+    fn f32(&mut self) -> Result<f32, FeedError> {
+        self.take().map(f32::from_le_bytes)
+    }
+    fn vector(&mut self) -> Result<Vector3<f64>, FeedError> {
+        Ok(Vector3::new(self.f64()?, self.f64()?, self.f64()?))
+    }
+    fn pose(&mut self) -> Result<Isometry3<f64>, FeedError> {
+        let t = self.vector()?;
+        let (i, j, k, w) = (self.f64()?, self.f64()?, self.f64()?, self.f64()?);
+        // The sender's unit quaternion, bit for bit: no renormalisation.
+        Ok(Isometry3::from_parts(
+            Translation3::from(t),
+            UnitQuaternion::new_unchecked(Quaternion::new(w, i, j, k)),
+        ))
+    }
+    fn f32s(&mut self) -> Result<Vec<f32>, FeedError> {
+        let n = self.len(4)?;
+        let (bytes, rest) = self.0.split_at(4 * n);
+        self.0 = rest;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect())
+    }
+    fn done(&self) -> Result<(), FeedError> {
+        if self.0.is_empty() {
+            Ok(())
+        } else {
+            Err(FeedError::Malformed("bytes left after the message"))
+        }
+    }
+}
+
+/// The message of one frame's tag and payload; `None` for the end mark.
+pub fn decode(tag: u8, payload: &[u8]) -> Result<Option<Message>, FeedError> {
+    let mut r = In(payload);
+    let message = match tag {
+        END => None,
+        GROUND_TRUTH => Some(Message::GroundTruth(GroundTruth {
+            stamp_ns: r.i64()?,
+            world_from_base: r.pose()?,
+            velocity_in_world: r.vector()?,
+            omega_in_base: r.vector()?,
+        })),
+        IMU => Some(Message::Imu(ImuSample {
+            stamp_ns: r.i64()?,
+            accel_mps2: r.vector()?,
+            gyro_rps: r.vector()?,
+        })),
+        ODOMETRY => Some(Message::WheelOdometry(WheelOdometry {
+            stamp_ns: r.i64()?,
+            linear_mps: r.f64()?,
+            angular_rps: r.f64()?,
+            odom_from_base: r.pose()?,
+        })),
+        LIDAR => {
+            let stamp_ns = r.i64()?;
+            let sweep_ns = r.i64()?;
+            let n = r.len(22)?;
+            let mut points = Vec::with_capacity(n);
+            for _ in 0..n {
+                points.push(LidarPoint {
+                    x: r.f32()?,
+                    y: r.f32()?,
+                    z: r.f32()?,
+                    intensity: r.f32()?,
+                    time_s: r.f32()?,
+                    ring: u16::from_le_bytes(r.take()?),
+                });
+            }
+            Some(Message::Lidar(LidarScan {
+                stamp_ns,
+                sweep_ns,
+                points,
+            }))
+        }
+        SCAN_FRONT | SCAN_BACK => Some(Message::Scan2d(LaserScan {
+            stamp_ns: r.i64()?,
+            side: if tag == SCAN_FRONT {
+                ScanSide::Front
+            } else {
+                ScanSide::Back
+            },
+            angle_min_rad: r.f32()?,
+            angle_increment_rad: r.f32()?,
+            time_increment_s: r.f32()?,
+            range_min_m: r.f32()?,
+            range_max_m: r.f32()?,
+            ranges_m: r.f32s()?,
+            intensities: r.f32s()?,
+        })),
+        RGBD => {
+            let stamp_ns = r.i64()?;
+            let width = r.len(0)?;
+            let height = r.len(0)?;
+            let intrinsics = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
+            let n = r.len(1)?;
+            let (rgb, rest) = r.0.split_at(n);
+            r.0 = rest;
+            let rgb = rgb.to_vec();
+            let depth_m = r.f32s()?;
+            if rgb.len() != 3 * width * height || depth_m.len() != width * height {
+                return Err(FeedError::Malformed("image size"));
+            }
+            Some(Message::Rgbd(RgbdFrame {
+                stamp_ns,
+                image: RgbdImage {
+                    width,
+                    height,
+                    rgb,
+                    depth_m,
+                    intrinsics,
+                },
+            }))
+        }
+        _ => return Err(FeedError::Malformed("unknown message kind")),
+    };
+    r.done()?;
+    Ok(message)
+}
+
+/// Reads a stream of frames (a worker's stdin) as messages. Ends at the end mark; an error
+/// (a stream cut short, a malformed frame) ends the iteration and is kept for [`Self::error`].
+#[derive(Debug)]
+pub struct FeedReader<R: Read> {
+    input: BufReader<R>,
+    done: bool,
+    error: Arc<Mutex<Option<FeedError>>>,
+}
+
+impl<R: Read> FeedReader<R> {
+    pub fn new(input: R) -> Self {
+        Self {
+            input: BufReader::with_capacity(1 << 20, input),
+            done: false,
+            error: Arc::default(),
+        }
+    }
+
+    /// Where the reading error lands, readable after the reader has moved to another thread.
+    pub fn error_slot(&self) -> Arc<Mutex<Option<FeedError>>> {
+        Arc::clone(&self.error)
+    }
+
+    fn next_frame(&mut self) -> Result<Option<Message>, FeedError> {
+        let mut head = [0u8; 9];
+        if let Err(e) = self.input.read_exact(&mut head) {
+            return Err(match e.kind() {
+                std::io::ErrorKind::UnexpectedEof => FeedError::Truncated,
+                _ => e.into(),
+            });
+        }
+        let len = u64::from_le_bytes(head[1..].try_into().expect("8 bytes"));
+        if len > MAX_PAYLOAD {
+            return Err(FeedError::Malformed("frame larger than 1 GiB"));
+        }
+        let mut payload = vec![0u8; len as usize];
+        self.input
+            .read_exact(&mut payload)
+            .map_err(|e| match e.kind() {
+                std::io::ErrorKind::UnexpectedEof => FeedError::Truncated,
+                _ => e.into(),
+            })?;
+        decode(head[0], &payload)
+    }
+}
+
+impl<R: Read> Iterator for FeedReader<R> {
+    type Item = Message;
+
+    fn next(&mut self) -> Option<Message> {
+        if self.done {
+            return None;
+        }
+        match self.next_frame() {
+            Ok(Some(m)) => Some(m),
+            Ok(None) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = true;
+                *self.error.lock().expect("no panic holds this lock") = Some(e);
+                None
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The supervisor's side
+
+/// One worker fed by a [`Feed`].
+#[derive(Debug)]
+pub struct Subscriber<W: Write + Send> {
+    /// Its plugin's sensors (ground truth always).
+    pub sensors: SensorSet,
+    /// Its stdin.
+    pub input: W,
+}
+
+/// Streams one simulation to several workers.
+#[derive(Debug, Clone)]
+pub struct Feed {
+    /// Simulated time to stop at (the route limit), ns; `None`: the whole route.
+    pub end_ns: Option<i64>,
+    /// A worker that takes no message for this long is cut off.
+    pub stall: Duration,
+}
+
+/// How a worker's feeding ended.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Delivery {
+    /// Every message and the end mark.
+    Complete,
+    /// It stopped reading (it exited or crashed) after `sent` messages.
+    Closed { sent: usize },
+    /// It took no message for the stall time after `sent` messages, and was cut off.
+    Stalled { sent: usize },
+}
+
+/// One worker's queue and the thread that writes it out.
+struct Lane {
+    sensors: SensorSet,
+    queue: Option<SyncSender<Arc<Vec<u8>>>>,
+    sent: usize,
+    outcome: Option<Delivery>,
+}
+
+/// Writes frames from `queue` to `out`, flushing whenever the queue runs dry; returns
+/// whether everything was written.
+fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>) -> bool {
+    let mut out = BufWriter::with_capacity(1 << 16, &mut out);
+    loop {
+        let frame = match queue.try_recv() {
+            Ok(f) => f,
+            Err(std::sync::mpsc::TryRecvError::Empty) => {
+                if out.flush().is_err() {
+                    return false;
+                }
+                match queue.recv() {
+                    Ok(f) => f,
+                    Err(_) => break,
+                }
+            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => break,
+        };
+        if out.write_all(&frame).is_err() {
+            return false;
+        }
+    }
+    out.flush().is_ok()
+}
+
+impl Feed {
+    /// Simulates `sim` with every subscriber's sensors and streams each its messages;
+    /// returns how each subscriber's feeding ended, in order. `Err`: the simulation itself
+    /// failed (its subscribers got no end mark).
+    pub fn run<W: Write + Send>(
+        &self,
+        sim: &Simulation,
+        subscribers: Vec<Subscriber<W>>,
+    ) -> Result<Vec<Delivery>, String> {
+        let sensors = union(&subscribers.iter().map(|s| s.sensors).collect::<Vec<_>>());
+        std::thread::scope(|scope| {
+            let mut lanes = Vec::new();
+            for sub in subscribers {
+                let (tx, rx) = sync_channel::<Arc<Vec<u8>>>(AHEAD);
+                let input = sub.input;
+                let writer = scope.spawn(move || write_lane(input, &rx));
+                lanes.push((
+                    Lane {
+                        sensors: sub.sensors,
+                        queue: Some(tx),
+                        sent: 0,
+                        outcome: None,
+                    },
+                    writer,
+                ));
+            }
+            let end = self.end_ns;
+            // The simulator produces ahead on its own thread, as in a worker.
+            let (sim_tx, sim_rx) = sync_channel::<Message>(AHEAD);
+            let producer = scope.spawn(move || {
+                for m in sim.stream(sensors) {
+                    if end.is_some_and(|e| m.stamp_ns() > e) || sim_tx.send(m).is_err() {
+                        break;
+                    }
+                }
+            });
+            for message in sim_rx {
+                let frame = Arc::new(encode(&message));
+                for (lane, _) in &mut lanes {
+                    if wants(&lane.sensors, &message) {
+                        self.offer(lane, &frame);
+                    }
+                }
+                if lanes.iter().all(|(l, _)| l.queue.is_none()) {
+                    break;
+                }
+            }
+            let simulated = producer.join().is_ok();
+            let end = Arc::new(end_frame());
+            let mut outcomes = Vec::new();
+            for (mut lane, writer) in lanes {
+                if simulated && lane.queue.is_some() {
+                    self.offer(&mut lane, &end);
+                }
+                let sent = lane.sent;
+                lane.queue = None;
+                let written = writer.join().unwrap_or(false);
+                outcomes.push(lane.outcome.unwrap_or(if written {
+                    Delivery::Complete
+                } else {
+                    Delivery::Closed { sent }
+                }));
+            }
+            if simulated {
+                Ok(outcomes)
+            } else {
+                Err("the simulator panicked".to_owned())
+            }
+        })
+    }
+
+    /// Queues a frame for a lane, waiting while its queue is full; a lane whose worker is
+    /// gone or stalled is closed.
+    fn offer(&self, lane: &mut Lane, frame: &Arc<Vec<u8>>) {
+        let Some(queue) = &lane.queue else { return };
+        let mut frame = Arc::clone(frame);
+        let mut since: Option<Instant> = None;
+        let mut nap = Duration::from_micros(50);
+        loop {
+            match queue.try_send(frame) {
+                Ok(()) => {
+                    lane.sent += 1;
+                    return;
+                }
+                Err(TrySendError::Disconnected(_)) => {
+                    lane.outcome = Some(Delivery::Closed { sent: lane.sent });
+                    lane.queue = None;
+                    return;
+                }
+                Err(TrySendError::Full(f)) => {
+                    let waiting = since.get_or_insert_with(Instant::now);
+                    if waiting.elapsed() > self.stall {
+                        lane.outcome = Some(Delivery::Stalled { sent: lane.sent });
+                        lane.queue = None;
+                        return;
+                    }
+                    frame = f;
+                    // Back off from 50 µs to 2 ms: prompt for a fast worker, idle for a slow one.
+                    std::thread::sleep(nap);
+                    nap = (nap * 2).min(Duration::from_millis(2));
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every kind of message of a short simulation with all sensors survives the wire bit
+    /// for bit.
+    #[test]
+    fn every_message_round_trips_exactly() {
+        let config = sim::SimConfig::default();
+        let sim = Simulation::new(&config, "s1", 7).expect("s1");
+        let mut kinds = std::collections::BTreeSet::new();
+        for message in sim
+            .stream(SensorSet::ALL)
+            .take_while(|m| m.stamp_ns() < 150_000_000)
+        {
+            kinds.insert(message.sensor());
+            let bytes = encode(&message);
+            let mut reader = FeedReader::new(&bytes[..]);
+            let back = reader.next_frame().expect("decodes").expect("a message");
+            assert_eq!(back, message, "{} changed on the wire", message.sensor());
+            // Bitwise, not just ==: -0.0 and NaN payloads too.
+            assert_eq!(encode(&back), bytes);
+        }
+        assert_eq!(kinds.len(), 7, "every sensor seen: {kinds:?}");
+    }
+
+    #[test]
+    fn a_stream_without_its_end_mark_is_an_error() {
+        let gt = Message::GroundTruth(GroundTruth {
+            stamp_ns: 5,
+            world_from_base: Isometry3::identity(),
+            velocity_in_world: Vector3::x(),
+            omega_in_base: Vector3::z(),
+        });
+        let mut bytes = encode(&gt);
+        let mut reader = FeedReader::new(&bytes[..]);
+        let slot = reader.error_slot();
+        assert_eq!(reader.next(), Some(gt.clone()));
+        assert_eq!(reader.next(), None);
+        assert!(matches!(*slot.lock().unwrap(), Some(FeedError::Truncated)));
+
+        bytes.extend(end_frame());
+        let mut reader = FeedReader::new(&bytes[..]);
+        let slot = reader.error_slot();
+        assert_eq!(reader.by_ref().count(), 1);
+        assert!(slot.lock().unwrap().is_none(), "a complete stream");
+
+        // A frame cut in the middle, and a length beyond the payload.
+        let cut = &bytes[..bytes.len() - 20];
+        let mut reader = FeedReader::new(cut);
+        let slot = reader.error_slot();
+        assert_eq!(reader.by_ref().count(), 0);
+        assert!(matches!(*slot.lock().unwrap(), Some(FeedError::Truncated)));
+        assert!(matches!(
+            decode(SCAN_FRONT, &[0u8; 40]),
+            Err(FeedError::Malformed(_))
+        ));
+    }
+
+    /// Each subscriber gets its own sensors only, in order, then the end mark; one that
+    /// stops reading is closed without holding up the others.
+    #[test]
+    fn feeds_each_its_sensors_and_survives_a_dead_reader() {
+        let config = sim::SimConfig::default();
+        let sim = Simulation::new(&config, "s0", 3).expect("s0");
+        let imu_only = SensorSet {
+            ground_truth: true,
+            imu: true,
+            ..SensorSet::default()
+        };
+        let odom_only = SensorSet {
+            ground_truth: true,
+            wheel_odometry: true,
+            ..SensorSet::default()
+        };
+        let pipe = || std::os::unix::net::UnixStream::pair().expect("socket pair");
+        let (a_write, a_read) = pipe();
+        let (b_write, b_read) = pipe();
+        let (c_write, c_read) = pipe();
+        drop(c_read); // a worker that died at once
+        let feed = Feed {
+            end_ns: Some(2_000_000_000),
+            stall: Duration::from_secs(30),
+        };
+        let readers = std::thread::spawn(move || {
+            let a: Vec<Message> = FeedReader::new(a_read).collect();
+            let b: Vec<Message> = FeedReader::new(b_read).collect();
+            (a, b)
+        });
+        // b is read only after a is complete: the feed must keep a's lane going meanwhile
+        // (b's queue holds up to AHEAD messages; 2 s of gt + odom is fewer).
+        let outcomes = feed
+            .run(
+                &sim,
+                vec![
+                    Subscriber {
+                        sensors: imu_only,
+                        input: a_write,
+                    },
+                    Subscriber {
+                        sensors: odom_only,
+                        input: b_write,
+                    },
+                    Subscriber {
+                        sensors: imu_only,
+                        input: c_write,
+                    },
+                ],
+            )
+            .expect("simulates");
+        let (a, b) = readers.join().expect("readers");
+        assert_eq!(outcomes[0], Delivery::Complete);
+        assert_eq!(outcomes[1], Delivery::Complete);
+        assert!(
+            matches!(outcomes[2], Delivery::Closed { .. }),
+            "{:?}",
+            outcomes[2]
+        );
+        let own = |set: SensorSet| -> Vec<Message> {
+            sim.stream(set)
+                .take_while(|m| m.stamp_ns() <= 2_000_000_000)
+                .collect()
+        };
+        assert_eq!(
+            a,
+            own(imu_only),
+            "a got exactly its own simulation's stream"
+        );
+        assert_eq!(
+            b,
+            own(odom_only),
+            "b got exactly its own simulation's stream"
+        );
+        assert!(a.iter().any(|m| matches!(m, Message::Imu(_))));
+    }
+}
