@@ -413,8 +413,8 @@ fn digest(sim: &Simulation, sensors: SensorSet, until_ns: i64) -> (u64, usize) {
     (h, n)
 }
 
-/// Determinism: the same configuration and seed give identical streams (also with rayon
-/// casting the lidar in parallel); another seed changes the noise.
+/// Determinism: the same configuration and seed give identical streams, on any number of
+/// threads; another seed changes the noise.
 #[test]
 fn same_seed_gives_identical_stream_and_another_seed_a_different_one() {
     let cfg = SimConfig::default();
@@ -440,6 +440,28 @@ fn same_seed_gives_identical_stream_and_another_seed_a_different_one() {
         a.1
     );
     assert_eq!(a, b, "same seed must give the identical stream");
+    // Whatever the number of threads: the lidar, the 2D scans and the camera all split
+    // their work over rayon's threads.
+    let short = 1_000_000_000;
+    let a1 = digest(
+        &Simulation::new(&cfg, "s0", 11).expect("builds"),
+        SensorSet::ALL,
+        short,
+    );
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        let t = pool.install(|| {
+            digest(
+                &Simulation::new(&cfg, "s0", 11).expect("builds"),
+                SensorSet::ALL,
+                short,
+            )
+        });
+        assert_eq!(a1, t, "{threads} thread(s) must give the identical stream");
+    }
     assert_eq!(a.1, c.1, "another seed gives the same number of messages");
     assert_ne!(a.0, c.0, "another seed must give different noise");
 }

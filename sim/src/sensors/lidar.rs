@@ -96,6 +96,9 @@ impl LidarSensor {
             .enumerate()
             .for_each(|(task, out)| {
                 let mut world_dirs = vec![Vector3::zeros(); rings];
+                // Each beam's hit in the previous column (0.2° away): usually the same
+                // triangle, it seeds the search (the hits are the same without it).
+                let mut previous = vec![None; rings];
                 for (j, column_out) in out.chunks_mut(rings).enumerate() {
                     let c = task * COLUMNS_PER_TASK + j;
                     let world_from_lidar = &poses[c];
@@ -112,9 +115,11 @@ impl LidarSensor {
                     {
                         *w = rot * d;
                     }
+                    column_out.copy_from_slice(&previous);
                     scene
                         .caster
-                        .cast_fan(&origin, &world_dirs, t_min, t_max, column_out);
+                        .cast_fan_guessed(&origin, &world_dirs, t_min, t_max, column_out);
+                    previous.copy_from_slice(column_out);
                 }
             });
         hits

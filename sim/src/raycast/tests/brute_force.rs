@@ -74,3 +74,87 @@ fn heap_stack_for_deep_trees_gives_the_same_hits() {
         );
     }
 }
+
+/// A guess only speeds the search up: whatever is guessed (the right triangle, a neighbour's
+/// hit, a triangle the ray misses or hits beyond the range, a triangle behind the true hit,
+/// an index out of the mesh), the answer is exactly the brute-force one.
+#[test]
+fn guesses_never_change_the_answer() {
+    use crate::raycast::Hit;
+    let mut rng = rng(10);
+    // A grid of coplanar triangles too: rays through shared edges and corners tie.
+    let mut mesh = soup(&mut rng, 2000, 5.0, 1.0);
+    let grid = super::grid(12);
+    for (tri, material) in grid.triangles.iter().zip(&grid.materials) {
+        let corners = tri.map(|v| mesh.push_vertex(grid.vertices[v as usize]));
+        mesh.push_triangle(corners, *material);
+    }
+    let bvh = Bvh::build(&mesh);
+    let brute = BruteForce::build(&mesh);
+    let n = mesh.triangles.len() as u32;
+    let (mut seeded, mut rays) = (0, 0);
+    for i in 0..6000 {
+        let origin = point_in(&mut rng, -6.0, 6.0);
+        let dir = unit_dir(&mut rng);
+        let (t_min, t_max) = if i % 2 == 0 { (0.1, 30.0) } else { (1.0, 4.0) };
+        let expected = brute.cast(&origin, &dir, t_min, t_max);
+        let mut guesses = vec![
+            None,
+            expected,
+            Some(Hit {
+                t: 0.0,
+                triangle: rng.random_range(0..n),
+            }),
+            Some(Hit {
+                t: 0.0,
+                triangle: n + 5,
+            }),
+            Some(Hit {
+                t: 0.0,
+                triangle: u32::MAX,
+            }),
+        ];
+        // Every triangle the ray hits anywhere, in or out of the range.
+        guesses.extend(
+            (0..n)
+                .filter(|&k| brute_hit(&mesh, k, &origin, &dir))
+                .map(|k| {
+                    Some(Hit {
+                        t: 0.0,
+                        triangle: k,
+                    })
+                }),
+        );
+        for guess in guesses {
+            rays += 1;
+            seeded += usize::from(
+                guess.is_some_and(|g| expected.is_some_and(|e| e.triangle != g.triangle)),
+            );
+            assert_eq!(
+                bvh.cast_guessed(&origin, &dir, t_min, t_max, guess),
+                expected,
+                "ray {i} guessing {guess:?}"
+            );
+            let mut fan = [guess];
+            bvh.cast_fan_guessed(&origin, &[dir], t_min, t_max, &mut fan);
+            assert_eq!(fan[0], expected, "fan ray {i} guessing {guess:?}");
+        }
+    }
+    assert!(
+        seeded > 1000 && rays > 30_000,
+        "{seeded} wrong guesses of {rays}"
+    );
+}
+
+/// Whether the ray hits triangle `k` at any distance.
+fn brute_hit(
+    mesh: &crate::world::Mesh,
+    k: u32,
+    origin: &nalgebra::Point3<f32>,
+    dir: &nalgebra::Vector3<f32>,
+) -> bool {
+    let [a, b, c] = mesh.corners(k as usize).map(|p| <[f32; 3]>::from(p.coords));
+    crate::raycast::triangle::Triangle::new(a, b, c)
+        .and_then(|t| t.intersect(&crate::raycast::ray::Ray::new(origin, dir)))
+        .is_some()
+}
