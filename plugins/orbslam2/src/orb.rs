@@ -64,6 +64,7 @@ use opencv::core::{self, Mat, Ptr, Rect, Size, Vector};
 use opencv::features2d::{self, ORB, ORB_ScoreType};
 use opencv::imgproc;
 use opencv::prelude::*;
+use rayon::prelude::*;
 
 use slam_common::bow::Descriptor;
 
@@ -146,6 +147,10 @@ struct Corner {
 }
 
 /// ORB-SLAM2's ORB extractor. Holds the pyramid and scratch buffers, reused across calls.
+///
+/// Once the pyramid is built, its levels are independent: each has its own worker (buffers
+/// and OpenCV `ORB`), the levels run in parallel (rayon) and their keypoints are
+/// concatenated in level order, so the output does not depend on the number of threads.
 #[derive(Debug)]
 pub struct OrbExtractor {
     config: OrbConfig,
@@ -157,8 +162,15 @@ pub struct OrbExtractor {
     per_level: Vec<usize>,
     /// Half-width of the orientation disc on each row `|dy|` = 0..=15.
     disc: [i32; HALF_PATCH_SIZE as usize + 1],
-    orb: Ptr<ORB>,
     pyramid: Vec<Mat>,
+    workers: Vec<LevelWorker>,
+}
+
+/// One pyramid level's extraction state: OpenCV's ORB for the descriptors, scratch buffers,
+/// and the level's keypoints and descriptors once extracted.
+#[derive(Debug)]
+struct LevelWorker {
+    orb: Ptr<ORB>,
     fast: Vector<core::KeyPoint>,
     cv_keys: Vector<core::KeyPoint>,
     level_keys: Vec<KeyPoint>,
@@ -166,6 +178,24 @@ pub struct OrbExtractor {
     corners: Vec<Corner>,
     cell_has_corner: Vec<bool>,
     quadtree: QuadTree,
+    keys: Vec<KeyPoint>,
+    out: Vec<Descriptor>,
+}
+
+/// OpenCV's ORB for `compute`: only the descriptor parameters matter, the 31 px patch with
+/// the learned pattern (WTA_K 2, 32 bytes) and the border under which keypoints are dropped.
+fn descriptor_orb(config: &OrbConfig) -> Result<Ptr<ORB>, OrbError> {
+    Ok(ORB::create(
+        config.features.min(i32::MAX as usize) as i32,
+        config.scale_factor as f32,
+        1,
+        EDGE_THRESHOLD,
+        0,
+        2,
+        ORB_ScoreType::FAST_SCORE,
+        PATCH_SIZE,
+        config.ini_th_fast,
+    )?)
 }
 
 impl OrbExtractor {
@@ -201,20 +231,23 @@ impl OrbExtractor {
                 .unwrap_or(0);
         }
 
-        // Only the descriptor parameters matter to `compute`: the 31 px patch with the learned
-        // pattern (WTA_K 2, 32 bytes) and the border under which keypoints are dropped.
-        let orb = ORB::create(
-            config.features.min(i32::MAX as usize) as i32,
-            config.scale_factor as f32,
-            1,
-            EDGE_THRESHOLD,
-            0,
-            2,
-            ORB_ScoreType::FAST_SCORE,
-            PATCH_SIZE,
-            config.ini_th_fast,
-        )?;
         let pyramid = (0..levels).map(|_| Mat::default()).collect();
+        let workers = (0..levels)
+            .map(|_| {
+                Ok(LevelWorker {
+                    orb: descriptor_orb(&config)?,
+                    fast: Vector::new(),
+                    cv_keys: Vector::new(),
+                    level_keys: Vec::new(),
+                    descriptors: Mat::default(),
+                    corners: Vec::new(),
+                    cell_has_corner: Vec::new(),
+                    quadtree: QuadTree::default(),
+                    keys: Vec::new(),
+                    out: Vec::new(),
+                })
+            })
+            .collect::<Result<_, OrbError>>()?;
         Ok(Self {
             config,
             scale,
@@ -223,15 +256,8 @@ impl OrbExtractor {
             inv_sigma2,
             per_level,
             disc,
-            orb,
             pyramid,
-            fast: Vector::new(),
-            cv_keys: Vector::new(),
-            level_keys: Vec::new(),
-            descriptors: Mat::default(),
-            corners: Vec::new(),
-            cell_has_corner: Vec::new(),
-            quadtree: QuadTree::default(),
+            workers,
         })
     }
 
@@ -289,8 +315,19 @@ impl OrbExtractor {
             return Ok((keys, descriptors));
         }
         let levels = self.build_pyramid(gray, width, height)?;
-        for level in 0..levels {
-            self.extract_level(level, &mut keys, &mut descriptors)?;
+        let (config, scale, per_level, disc) =
+            (&self.config, &self.scale, &self.per_level, &self.disc);
+        self.pyramid[..levels]
+            .par_iter()
+            .zip(&mut self.workers[..levels])
+            .enumerate()
+            .try_for_each(|(level, (image, worker))| {
+                let want = per_level[level];
+                worker.extract(config, level, scale[level], want, disc, image)
+            })?;
+        for worker in &mut self.workers[..levels] {
+            keys.append(&mut worker.keys);
+            descriptors.append(&mut worker.out);
         }
         Ok((keys, descriptors))
     }
@@ -325,15 +362,22 @@ impl OrbExtractor {
         }
         Ok(self.levels())
     }
+}
 
-    fn extract_level(
+impl LevelWorker {
+    /// The keypoints and descriptors of one level (`image`, at `scale` of level 0) into
+    /// `self.keys` and `self.out`.
+    fn extract(
         &mut self,
+        config: &OrbConfig,
         level: usize,
-        keys: &mut Vec<KeyPoint>,
-        descriptors: &mut Vec<Descriptor>,
+        scale: f64,
+        want: usize,
+        disc: &[i32],
+        image: &Mat,
     ) -> Result<(), OrbError> {
-        let want = self.per_level[level];
-        let image = &self.pyramid[level];
+        self.keys.clear();
+        self.out.clear();
         let (cols, rows) = (image.cols(), image.rows());
         // FAST reads [lo, hi) on each axis; its corners lie in [lo + 3, hi - 3).
         let lo = EDGE_THRESHOLD - FAST_RADIUS;
@@ -345,8 +389,8 @@ impl OrbExtractor {
         detect(
             image,
             area,
-            self.config.ini_th_fast,
-            self.config.min_th_fast,
+            config.ini_th_fast,
+            config.min_th_fast,
             &mut self.fast,
             &mut self.cell_has_corner,
             &mut self.corners,
@@ -360,12 +404,12 @@ impl OrbExtractor {
         }
         let data = image.data_bytes()?;
         let step = cols as usize;
-        let scale = self.scale[level] as f32;
+        let scale = scale as f32;
         self.level_keys.clear();
         self.cv_keys.clear();
         for (index, &c) in kept.iter().enumerate() {
             let corner = self.corners[c];
-            let angle = ic_angle(data, step, corner.x as usize, corner.y as usize, &self.disc);
+            let angle = ic_angle(data, step, corner.x as usize, corner.y as usize, disc);
             self.level_keys.push(KeyPoint {
                 u: corner.x as f32 * scale,
                 v: corner.y as f32 * scale,
@@ -394,10 +438,10 @@ impl OrbExtractor {
         let bytes = self.descriptors.data_bytes()?;
         // The keypoints OpenCV kept, in the order of their descriptors.
         for (k, row) in self.cv_keys.iter().zip(bytes.chunks_exact(32)) {
-            keys.push(self.level_keys[k.class_id() as usize]);
+            self.keys.push(self.level_keys[k.class_id() as usize]);
             let mut d = [0u8; 32];
             d.copy_from_slice(row);
-            descriptors.push(d);
+            self.out.push(d);
         }
         Ok(())
     }
@@ -1325,18 +1369,20 @@ mod tests {
         let img = texture(W, H, 12, 1.0);
         let (all_keys, all_desc) = extractor().extract(&img, W, H).unwrap();
         let mut e = extractor();
-        e.orb = ORB::create(
-            1000,
-            1.2,
-            1,
-            40,
-            0,
-            2,
-            ORB_ScoreType::FAST_SCORE,
-            PATCH_SIZE,
-            20,
-        )
-        .unwrap();
+        for w in &mut e.workers {
+            w.orb = ORB::create(
+                1000,
+                1.2,
+                1,
+                40,
+                0,
+                2,
+                ORB_ScoreType::FAST_SCORE,
+                PATCH_SIZE,
+                20,
+            )
+            .unwrap();
+        }
         let (keys, desc) = e.extract(&img, W, H).unwrap();
         assert_eq!(keys.len(), desc.len());
         assert!(
