@@ -76,7 +76,8 @@ pub trait RayCaster: Send + Sync + std::fmt::Debug {
         }
     }
 
-    /// Many rays from ONE origin (a lidar column / a scan): fills `out[i]` for `dirs[i]`.
+    /// Many rays from ONE origin (a lidar column / a scan): fills `out[i]` for `dirs[i]`;
+    /// [`Self::cast_fan_guessed`] with no guesses.
     ///
     /// Panics if `out` is shorter than `dirs`.
     fn cast_fan(
@@ -87,12 +88,8 @@ pub trait RayCaster: Send + Sync + std::fmt::Debug {
         t_max: f32,
         out: &mut [Option<Hit>],
     ) {
-        assert!(
-            out.len() >= dirs.len(),
-            "cast_fan: `out` shorter than `dirs`"
-        );
-        for (slot, dir) in out.iter_mut().zip(dirs) {
-            *slot = self.cast(origin, dir, t_min, t_max);
-        }
+        let n = dirs.len().min(out.len());
+        out[..n].fill(None);
+        self.cast_fan_guessed(origin, dirs, t_min, t_max, out);
     }
 }

@@ -146,6 +146,10 @@ impl RayCaster for Bvh {
         self.with_stack(|stack| traverse::closest(self, ray, t_min, t_max, seed, stack))
     }
 
+    /// Same answers as [`Bvh::cast_guessed`] ray by ray, with one traversal stack for the
+    /// whole fan (`cast_fan` comes here with no guesses). Consecutive directions that are
+    /// close (one laser ring at a time rather than one column) share more of the tree in
+    /// cache and run about 10% faster.
     fn cast_fan_guessed(
         &self,
         origin: &Point3<f32>,
@@ -164,29 +168,6 @@ impl RayCaster for Bvh {
                 let ray = Ray::new(origin, dir);
                 let seed = self.seed(&ray, t_min, t_max, *slot);
                 *slot = traverse::closest(self, ray, t_min, t_max, seed, stack);
-            }
-        });
-    }
-
-    /// Same answers as [`Bvh::cast`] ray by ray, with one traversal stack for the whole fan.
-    /// Consecutive directions that are close (one laser ring at a time rather than one
-    /// column) share more of the tree in cache and run about 10% faster.
-    fn cast_fan(
-        &self,
-        origin: &Point3<f32>,
-        dirs: &[Vector3<f32>],
-        t_min: f32,
-        t_max: f32,
-        out: &mut [Option<Hit>],
-    ) {
-        assert!(
-            out.len() >= dirs.len(),
-            "cast_fan: `out` shorter than `dirs`"
-        );
-        let out = &mut out[..dirs.len()];
-        self.with_stack(|stack| {
-            for (slot, dir) in out.iter_mut().zip(dirs) {
-                *slot = traverse::closest(self, Ray::new(origin, dir), t_min, t_max, None, stack);
             }
         });
     }
