@@ -80,6 +80,13 @@ use ground::GroundTexture;
 use shading::{Light, Shader};
 use shadow::ShadowMap;
 
+/// The visibility sample offsets of a pixel for `antialias_samples` samples (1, 4 or 8):
+/// `[x, y]` in pixels from the pixel centre, x right and y down (Direct3D's standard
+/// patterns; one sample: the centre).
+pub fn sample_offsets(samples: usize) -> &'static [[f32; 2]] {
+    raster::pattern(samples)
+}
+
 /// Rows per parallel band: fixed, so that output never depends on the thread count.
 const BAND_ROWS: usize = 8;
 
@@ -202,7 +209,27 @@ impl RgbdCamera {
                     let (inv_z, ids) = (&mut inv_z[..len], &mut ids[..len]);
                     inv_z.fill(0.0);
                     ids.fill(u32::MAX);
-                    raster::rasterize_band(&tris, list, first_row, (w, pattern), inv_z, ids);
+                    match pattern.len() {
+                        4 => raster::rasterize_band_ms(
+                            &tris,
+                            list,
+                            first_row,
+                            (w, &raster::SAMPLES_4),
+                            inv_z,
+                            ids,
+                        ),
+                        8 => raster::rasterize_band_ms(
+                            &tris,
+                            list,
+                            first_row,
+                            (w, &raster::SAMPLES_8),
+                            inv_z,
+                            ids,
+                        ),
+                        _ => {
+                            raster::rasterize_band(&tris, list, first_row, (w, pattern), inv_z, ids)
+                        }
+                    }
                     // Row by row: no integer division per pixel.
                     for (r, ((rgb, z), cos)) in rgb
                         .chunks_exact_mut(3 * w)
@@ -214,27 +241,23 @@ impl RgbdCamera {
                         // Through u32: exact (a frame is far narrower than 2^24) and one
                         // instruction, where usize to f32 takes several.
                         let y = v as u32 as f32;
-                        // The row's samples, `[sample][column]`.
+                        // The row's samples, `[column][sample]` (one sample: the same).
                         let (row_ids, row_q) =
                             (&ids[r * n * w..][..n * w], &inv_z[r * n * w..][..n * w]);
-                        let mut pixel_ids = [u32::MAX; 8];
-                        let mut pixel_q = [0.0f32; 8];
-                        for (u, ((lin, z), cos)) in linear
+                        for (u, ((((lin, z), cos), pixel_ids), pixel_q)) in linear
                             .iter_mut()
                             .zip(z.iter_mut())
                             .zip(cos.iter_mut())
+                            .zip(row_ids.chunks_exact(n))
+                            .zip(row_q.chunks_exact(n))
                             .enumerate()
                         {
-                            for s in 0..n {
-                                pixel_ids[s] = row_ids[s * w + u];
-                                pixel_q[s] = row_q[s * w + u];
-                            }
                             let s = msaa::resolve(
                                 &shader,
                                 pattern,
                                 (u as u32 as f32, y),
-                                &pixel_ids[..n],
-                                &pixel_q[..n],
+                                pixel_ids,
+                                pixel_q,
                             );
                             *lin = s.rgb;
                             *z = s.depth;
