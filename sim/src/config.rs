@@ -16,7 +16,8 @@ use crate::error::SimError;
 pub struct SimConfig {
     /// Seed of the world's geometry (terrain, plants); the run's seed drives sensor noise.
     pub world_seed: u64,
-    /// Ray-casting engine: `bvh` (the simulator's own) or `parry` (parry3d, a cross-check).
+    /// Ray-casting engine: `bvh` (the simulator's own), `parry` (parry3d, a cross-check) or
+    /// `embree` (Intel's Embree 3, with the `embree` feature).
     pub raycaster: RaycasterKind,
     pub vineyard: VineyardConfig,
     pub terrain: TerrainConfig,
@@ -184,6 +185,9 @@ pub enum RaycasterKind {
     #[default]
     Bvh,
     Parry,
+    /// Intel's Embree 3 (the system's libembree3); only in builds with vinebench-sim's
+    /// `embree` feature (on by default), else `Simulation::new` refuses it naming the key.
+    Embree,
 }
 
 /// The vine block: rows along the world x axis, starting at x = 0, the first row at y = 0.

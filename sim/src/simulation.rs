@@ -109,6 +109,22 @@ impl Simulation {
         let caster: Box<dyn RayCaster> = match config.raycaster {
             RaycasterKind::Bvh => Box::new(Bvh::build(&world.mesh)),
             RaycasterKind::Parry => Box::new(ParryCaster::build(&world.mesh)),
+            #[cfg(feature = "embree")]
+            RaycasterKind::Embree => Box::new(
+                crate::raycast::EmbreeCaster::build(&world.mesh).map_err(|e| SimError::Config {
+                    origin: "raycaster = \"embree\"".into(),
+                    message: e.to_string(),
+                })?,
+            ),
+            #[cfg(not(feature = "embree"))]
+            RaycasterKind::Embree => {
+                return Err(SimError::Config {
+                    origin: "raycaster = \"embree\"".into(),
+                    message: "this build has no Embree (vinebench-sim's cargo feature `embree` \
+                              is off); use \"bvh\" or \"parry\""
+                        .into(),
+                });
+            }
         };
         Ok(Self {
             config: config.clone(),

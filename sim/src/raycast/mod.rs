@@ -6,13 +6,22 @@
 //!   Trumbore 1997) that divides only for a hit.
 //! - [`ParryCaster`]: parry3d's `TriMesh`, an independent implementation to cross-check against.
 //! - [`BruteForce`]: every triangle for every ray; the reference for tests.
+//! - `EmbreeCaster` (cargo feature `embree`, on by default): Intel's Embree 3, the system's
+//!   libembree3 (Debian's libembree-dev), through the `vinebench-embree` binding; single rays
+//!   with `rtcIntersect1`, fans in packets of 8 with `rtcIntersect8`. The industry's kernel,
+//!   to check the BVH against hit for hit and in rays per second.
 //!
-//! All three answer the closest hit with the same rule: smallest `t` in `[t_min, t_max]`, ties
-//! broken by the smaller triangle index, so results never depend on traversal order.
+//! All answer the closest hit with the same rule: smallest `t` in `[t_min, t_max]`, ties
+//! broken by the smaller triangle index, so results never depend on traversal order. The BVH,
+//! parry3d and brute force share our triangle test; Embree rounds its own way, so its `t` can
+//! differ in the last bits and, where two triangles are hit within that rounding (a shared
+//! edge), it can name the other one (see `embree.rs`; sim/tests/embree.rs counts how often).
 
 mod aabb;
 mod brute;
 mod bvh;
+#[cfg(feature = "embree")]
+mod embree;
 mod parry;
 mod ray;
 mod triangle;
@@ -22,6 +31,8 @@ mod tests;
 
 use nalgebra::{Point3, Vector3};
 
+#[cfg(feature = "embree")]
+pub use self::embree::{EmbreeCaster, FAN_PACKET as EMBREE_FAN_PACKET};
 pub use brute::BruteForce;
 pub use bvh::Bvh;
 pub use parry::ParryCaster;
