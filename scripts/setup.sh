@@ -13,6 +13,9 @@ command -v python3 >/dev/null 2>&1 || { need_pkg python3; need_pkg python3-pip; 
 need_pkg libopencv-dev
 need_pkg clang
 need_pkg libclang-dev
+# Embree 3 (libembree3 and its headers) for vinebench-sim's `embree` feature, on by default:
+# sim/embree links it for `raycaster = "embree"`.
+need_pkg libembree-dev
 # libpython3.11 to link, for pyo3 in plugins/gtsam-backend (the "gtsam" backend's bridge),
 # and Debian's venv module for its GTSAM environment below.
 need_pkg python3-dev
