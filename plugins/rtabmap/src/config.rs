@@ -45,6 +45,11 @@ pub struct Config {
     /// Optional: a CSV file to write every graph update's size and time to
     /// (`poses,full,seconds`); a relative path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
+    /// Optional: a CSV file to write every location's update to: its cost as the memory
+    /// limits count it, what they transferred, and the wall and thread CPU time of the
+    /// camera frame that made it (`step_ns`, `step_cpu_ns`; written only, they steer
+    /// nothing).
+    pub locations_csv: Option<std::path::PathBuf>,
 }
 
 impl Default for Config {
@@ -74,6 +79,7 @@ impl Default for Config {
                 ..BackendConfig::default()
             },
             profile_csv: None,
+            locations_csv: None,
         }
     }
 }
@@ -271,6 +277,15 @@ pub struct MemoryConfig {
     /// `Rtabmap/MemoryThr`: working-memory locations beyond which the oldest go to
     /// long-term memory and stop being candidates (0: unlimited).
     pub working_memory_limit: usize,
+    /// `Rtabmap/TimeThr`, counted instead of timed so that a run does not depend on the
+    /// machine (see [`crate::memory`]): when quantising a new location costs more than this
+    /// many descriptor-to-word comparisons (its descriptors times the vocabulary's words),
+    /// the two oldest working-memory locations go to long-term memory (0: unlimited).
+    /// Calibrated on this project's 2-core machine (`locations_csv`, S3, thread CPU time): a
+    /// location's frame costs about 15 ms plus 5–6.5 ns per comparison, so the default 6 M
+    /// keeps it near 50 ms, under half of the 100 ms real-time goal, leaving room for a
+    /// loaded machine.
+    pub comparison_limit: u64,
     /// `Kp/NndrRatio`: a descriptor joins an existing word when nearest < ratio × second.
     pub word_nndr: f32,
     /// The vocabulary's search radius, as the multi-index hash's probe radius `r`: words
@@ -289,6 +304,7 @@ impl Default for MemoryConfig {
             max_words: 500,
             short_term_memory: 10,
             working_memory_limit: 0,
+            comparison_limit: 6_000_000,
             word_nndr: 0.8,
             word_probe_radius: 3,
         }

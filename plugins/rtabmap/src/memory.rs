@@ -2,10 +2,34 @@
 //! real-time appearance-based loop closure detection", IROS 2011; T-RO 2013, §III-A): a new
 //! location first enters short-term memory (STM), whose locations are never loop-closure
 //! candidates since they look like the current image anyway; when STM is full its oldest
-//! location moves to working memory (WM), where it is a candidate; with a WM limit, the
-//! oldest WM locations move on to long-term memory (LTM) and leave the vocabulary and the
-//! Bayes filter. (RTAB-Map picks what to transfer by a weight grown by rehearsal; there is no
-//! rehearsal here, so the oldest go.)
+//! location moves to working memory (WM), where it is a candidate. Two limits move the
+//! oldest WM locations on to long-term memory (LTM), where they leave the vocabulary and the
+//! Bayes filter: they are no longer searched when a new location is quantised, nor loop
+//! candidates.
+//!
+//! - `Rtabmap/MemoryThr` ([`MemoryConfig::working_memory_limit`]): at most this many
+//!   locations in WM.
+//! - `Rtabmap/TimeThr`, RTAB-Map's real-time limit: when a location's update took longer
+//!   than the limit, `Memory::forget` transfers to LTM one location more than the update
+//!   added (with RTAB-Map's default incremental FLANN dictionary, `Kp/IncrementalFlann`),
+//!   so WM shrinks by one per update over the limit and grows by one per update under it,
+//!   and settles at the size the limit affords (`Rtabmap::process`, "TRANSFER", and
+//!   `Memory::forget` in RTAB-Map's corelib). Measured in wall time, that would make a run's
+//!   results depend on the machine and its load, and vinebench needs the same numbers for
+//!   the same seed. Here the update's cost is counted instead
+//!   ([`MemoryConfig::comparison_limit`]): the descriptor-to-word comparisons of quantising
+//!   the new location, its descriptors times the words of the vocabulary — the cost that
+//!   grows with WM, and what a brute-force dictionary search (`Kp/NNStrategy` 3) does. The
+//!   rest of a location's update (features, the graph, proximity) does not grow with WM and
+//!   no transfer could shorten it. The limit is calibrated to time on this machine in
+//!   `configs/rtabmap.toml`.
+//!
+//! RTAB-Map picks what to transfer by a weight grown by rehearsal (merging consecutive
+//! look-alike locations), then by age; there is no rehearsal here, so the oldest go. Nor is
+//! there retrieval (`Rtabmap/MaxRetrieved`: bringing the neighbours of a strong hypothesis
+//! back from LTM) or immunisation of the locations near the robot
+//! (`RGBD/LocalImmunizationRatio`); proximity detection ([`crate::proximity`]) still looks
+//! at every location, in LTM too.
 
 use std::collections::{BTreeSet, VecDeque};
 
@@ -30,6 +54,24 @@ pub struct Location {
     pub scan: Option<Vec<Vector2<f64>>>,
     /// Decimated depth points in the base frame, for the map cloud.
     pub cloud: Vec<Vector3<f32>>,
+}
+
+/// What adding a location did and cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Update {
+    /// The location's descriptors.
+    pub descriptors: usize,
+    /// Of those, the ones that became new words.
+    pub new_words: usize,
+    /// Words of the vocabulary they were quantised against.
+    pub vocabulary_words: usize,
+    /// `descriptors × vocabulary_words`: the update's cost as
+    /// [`MemoryConfig::comparison_limit`] counts it.
+    pub comparisons: u64,
+    /// Locations moved to LTM after this update, by either limit.
+    pub transferred: usize,
+    /// Locations in WM afterwards.
+    pub working_memory: usize,
 }
 
 /// The loop-closure hypothesis for a new location, if any passed the threshold.
@@ -93,20 +135,35 @@ impl Memory {
         self.wm.len()
     }
 
+    /// Locations moved to long-term memory so far.
+    pub fn long_term_memory(&self) -> usize {
+        self.ltm
+    }
+
     /// Adds a location: quantises its features into words, and (with `detect`) runs the
     /// Bayes filter over working memory. Returns the posterior and the hypothesis above the
-    /// threshold, if any. The location then enters STM.
+    /// threshold, if any, and what the update cost. The location then enters STM, and the
+    /// memory limits move the oldest WM locations to LTM.
     pub fn add(
         &mut self,
         mut location: Location,
         detect: bool,
-    ) -> (Option<Posterior>, Option<Hypothesis>) {
+    ) -> (Option<Posterior>, Option<Hypothesis>, Update) {
         let id = location.id;
         debug_assert_eq!(id, self.next_id());
+        let vocabulary_words = self.vocabulary.word_count();
+        let descriptors = location.features.descriptors.len();
         location.words = self
             .vocabulary
             .add_signature(id as SignatureId, &location.features.descriptors);
-        let mut result = (None, None);
+        let mut update = Update {
+            descriptors,
+            new_words: self.vocabulary.word_count() - vocabulary_words,
+            vocabulary_words,
+            comparisons: descriptors as u64 * vocabulary_words as u64,
+            ..Update::default()
+        };
+        let (mut posterior, mut hypothesis) = (None, None);
         if detect && !self.wm.is_empty() {
             let wm = &self.wm;
             let raw = self
@@ -120,12 +177,12 @@ impl Memory {
                 }
             }
             let (likelihood, virtual_likelihood) = slam_common::bow::adjusted_likelihood(&scores);
-            let posterior = self.bayes.update(&likelihood, virtual_likelihood);
-            let hypothesis = posterior
+            let updated = self.bayes.update(&likelihood, virtual_likelihood);
+            hypothesis = updated
                 .best()
                 .filter(|(_, p)| *p >= self.threshold)
                 .map(|(id, posterior)| Hypothesis { id, posterior });
-            result = (Some(posterior), hypothesis);
+            posterior = Some(updated);
         }
         self.locations.push(location);
         self.stm.push_back(id);
@@ -133,16 +190,32 @@ impl Memory {
             let oldest = self.stm.pop_front().expect("STM is not empty");
             self.wm.insert(oldest);
         }
+        let before = self.ltm;
         if self.cfg.working_memory_limit > 0 {
             while self.wm.len() > self.cfg.working_memory_limit {
-                let oldest = *self.wm.first().expect("WM is not empty");
-                self.wm.remove(&oldest);
-                self.vocabulary.remove_signature(oldest as SignatureId);
-                self.bayes.remove(oldest);
-                self.ltm += 1;
+                self.transfer_oldest();
             }
         }
-        result
+        if self.cfg.comparison_limit > 0 && update.comparisons > self.cfg.comparison_limit {
+            // Memory::forget: one more than the update added.
+            for _ in 0..2 {
+                self.transfer_oldest();
+            }
+        }
+        update.transferred = self.ltm - before;
+        update.working_memory = self.wm.len();
+        (posterior, hypothesis, update)
+    }
+
+    /// Moves the oldest WM location, if any, to LTM: out of the vocabulary (with the words
+    /// only it held) and the Bayes filter.
+    fn transfer_oldest(&mut self) {
+        let Some(oldest) = self.wm.pop_first() else {
+            return;
+        };
+        self.vocabulary.remove_signature(oldest as SignatureId);
+        self.bayes.remove(oldest);
+        self.ltm += 1;
     }
 
     /// Correspondences for geometric verification of `old` against `new`: words that occur

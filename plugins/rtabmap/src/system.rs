@@ -11,7 +11,7 @@ use slam_common::scan2d::points_from_ranges;
 use crate::config::{Config, OdometrySource};
 use crate::features::{Features, Image, extract};
 use crate::graph::{LinkKind, LoopOutcome, PoseGraph, Sigmas, Strain};
-use crate::memory::{Hypothesis, Location, Memory};
+use crate::memory::{Hypothesis, Location, Memory, Update};
 use crate::pnp::{self, PnpConfig};
 use crate::proximity;
 use crate::scan_odometry::{ScanOdometry, Sweep, narrow_returns, planar, raised, spatial};
@@ -35,6 +35,28 @@ struct Record {
     location: Option<u64>,
 }
 
+/// A location's update and the time of the camera frame that made it (`locations_csv`).
+#[derive(Debug, Clone, Copy)]
+struct LocationTiming {
+    id: u64,
+    stamp_ns: i64,
+    update: Update,
+    step_ns: u128,
+    /// CPU time of the thread over the same frame, if the system says (Linux), which unlike
+    /// the wall time does not grow when other processes share the cores.
+    step_cpu_ns: Option<u64>,
+}
+
+/// CPU time this thread has run, ns (Linux: the first field of `/proc/thread-self/schedstat`).
+fn thread_cpu_ns() -> Option<u64> {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
 /// RTAB-Map-style appearance-based RGB-D SLAM.
 #[derive(Debug)]
 pub struct Rtabmap {
@@ -54,6 +76,8 @@ pub struct Rtabmap {
     events: Vec<Event>,
     /// Odometry was lost since the last location: the link to the next one is a guess.
     lost_since_location: bool,
+    /// Every location's update, kept when `locations_csv` is set.
+    location_timings: Vec<LocationTiming>,
 }
 
 /// Frames older than this do not lend their scan to a location, ns.
@@ -134,14 +158,15 @@ impl Rtabmap {
         out
     }
 
-    /// Makes a location at this frame, links it, and looks for a loop closure.
+    /// Makes a location at this frame, links it, and looks for a loop closure. Returns the
+    /// memory's update.
     fn add_location(
         &mut self,
         stamp_ns: i64,
         odom_from_base: Isometry3<f64>,
         features: Features,
         cloud: Vec<Vector3<f32>>,
-    ) -> Result<(), PluginError> {
+    ) -> Result<Update, PluginError> {
         let id = self.memory.next_id();
         let scan = self
             .latest_scan
@@ -174,14 +199,38 @@ impl Rtabmap {
             scan,
             cloud,
         };
-        let (_, hypothesis) = self.memory.add(location, self.cfg.loop_closure.enabled);
+        let (_, hypothesis, update) = self.memory.add(location, self.cfg.loop_closure.enabled);
         if let Some(h) = hypothesis {
             self.close_loop(id, h)?;
         }
         if self.cfg.proximity.enabled {
             self.close_by_proximity(id)?;
         }
-        Ok(())
+        Ok(update)
+    }
+
+    /// The `locations_csv` table.
+    fn locations_csv(&self) -> String {
+        let mut out = String::from(
+            "location,stamp_ns,descriptors,new_words,vocabulary_words,comparisons,transferred,working_memory,step_ns,step_cpu_ns\n",
+        );
+        for t in &self.location_timings {
+            let u = &t.update;
+            out.push_str(&format!(
+                "{},{},{},{},{},{},{},{},{},{}\n",
+                t.id,
+                t.stamp_ns,
+                u.descriptors,
+                u.new_words,
+                u.vocabulary_words,
+                u.comparisons,
+                u.transferred,
+                u.working_memory,
+                t.step_ns,
+                t.step_cpu_ns.map_or(String::new(), |ns| ns.to_string())
+            ));
+        }
+        out
     }
 
     /// Verifies a hypothesis by PnP and, if it holds, adds it to the graph, where the
@@ -501,6 +550,7 @@ impl SlamSystem for Rtabmap {
             records: Vec::new(),
             events: Vec::new(),
             lost_since_location: false,
+            location_timings: Vec::new(),
             cfg,
         })
     }
@@ -556,6 +606,12 @@ impl SlamSystem for Rtabmap {
         if frame.sensor != self.cfg.camera {
             return Ok(None);
         }
+        let start = std::time::Instant::now();
+        let start_cpu = self
+            .cfg
+            .locations_csv
+            .as_ref()
+            .and_then(|_| thread_cpu_ns());
         let image = Image {
             width: frame.width as usize,
             height: frame.height as usize,
@@ -619,7 +675,19 @@ impl SlamSystem for Rtabmap {
                     .map_err(|e| PluginError::new(e.to_string()))?,
             };
             let cloud = self.cloud(&image);
-            self.add_location(stamp, odom_from_base, features, cloud)?;
+            let id = self.memory.next_id();
+            let update = self.add_location(stamp, odom_from_base, features, cloud)?;
+            if self.cfg.locations_csv.is_some() {
+                self.location_timings.push(LocationTiming {
+                    id,
+                    stamp_ns: stamp,
+                    update,
+                    step_ns: start.elapsed().as_nanos(),
+                    step_cpu_ns: start_cpu
+                        .zip(thread_cpu_ns())
+                        .map(|(a, b)| b.saturating_sub(a)),
+                });
+            }
         }
         Ok(pose)
     }
@@ -630,6 +698,10 @@ impl SlamSystem for Rtabmap {
                 .backend
                 .write_csv(path)
                 .map_err(|e| PluginError::new(format!("profile_csv {}: {e}", path.display())))?;
+        }
+        if let Some(path) = &self.cfg.locations_csv {
+            std::fs::write(path, self.locations_csv())
+                .map_err(|e| PluginError::new(format!("locations_csv {}: {e}", path.display())))?;
         }
         let trajectory = self
             .records
