@@ -362,6 +362,19 @@ fn sample_frames() {
             let name = format!("stage{stage}_variation{variation}");
             save_rgb_png(&out.join(format!("{name}_rgb.png")), &colour).expect("rgb png");
             save_depth_png(&out.join(format!("{name}_depth.png")), &image, 8.0).expect("depth png");
+            if stage == 4.0 && variation == 0.0 {
+                // The renderer before: one sample a pixel, point-sampled materials.
+                let before = CameraConfig {
+                    antialias_samples: 1,
+                    filter_materials: false,
+                    ..exact()
+                };
+                let mut colour =
+                    RgbdCamera::new(&before, &world).render(&base, &mut stream(1, "camera"));
+                colour.rgb.iter_mut().for_each(|c| *c = (*c & !3) | 2);
+                save_rgb_png(&out.join(format!("{name}_rgb_single_sample.png")), &colour)
+                    .expect("rgb png");
+            }
         }
     }
 }
