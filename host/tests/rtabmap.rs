@@ -329,11 +329,19 @@ fn plugin_runs_s0_and_its_grid_lies_on_the_rows() {
 /// scans near the graph's estimate). Loaded from its `.so`, the plugin accepts loop closures
 /// there, and every accepted one joins places truly within a metre of each other. (The
 /// errors with and without are printed: on this route the odometry is already good, and the
-/// loops do not lower it measurably.)
+/// loops do not lower it measurably.) Memory management is on as by default: the comparison
+/// limit (`Rtabmap/TimeThr`, counted) moves the oldest locations to long-term memory, and no
+/// location is quantised against much more than the limit allows.
 #[test]
 fn true_loops_are_closed_in_s1() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let with = run(dir.path(), "s1", "rtabmap", "with-loops", "");
+    let with = run(
+        dir.path(),
+        "s1",
+        "rtabmap",
+        "with-loops",
+        "locations_csv = \"locations.csv\"\n",
+    );
     let without = run(
         dir.path(),
         "s1",
@@ -369,6 +377,32 @@ fn true_loops_are_closed_in_s1() {
         "S1: {} loops accepted; ATE {final_with:.3} m with, {final_without:.3} m without",
         accepted.len()
     );
+
+    // location,stamp_ns,descriptors,new_words,vocabulary_words,comparisons,transferred,
+    // working_memory,...
+    let csv = std::fs::read_to_string(with.join("locations.csv")).expect("locations.csv");
+    let rows: Vec<Vec<u64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .take(8)
+                .map(|v| v.parse().expect("an integer"))
+                .collect()
+        })
+        .collect();
+    let limit = rtabmap::config::MemoryConfig::default().comparison_limit;
+    let transferred: u64 = rows.iter().map(|r| r[6]).sum();
+    let worst = rows.iter().map(|r| r[5]).max().unwrap_or(0);
+    let wm = rows.iter().map(|r| r[7]).max().unwrap_or(0);
+    eprintln!(
+        "S1: {} locations, {transferred} moved to LTM, WM at most {wm}, at most {worst} comparisons (limit {limit})",
+        rows.len()
+    );
+    assert!(rows.len() > 50, "a location a second: {}", rows.len());
+    assert!(transferred > 0, "the comparison limit binds on S1");
+    // One location's words past the limit at most (500 descriptors, under 500 new words).
+    assert!(worst <= limit + 500 * 500, "{worst} comparisons");
 }
 
 /// What identical rows do to a graph, forced: S3's locations (one per second, odometry links
