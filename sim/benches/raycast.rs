@@ -1,6 +1,7 @@
 //! Ray-casting and lidar throughput on the default vineyard (growth stage 3, ~77k
 //! triangles): rays/s of one thread for the BVH (alone, and seeded with the previous
-//! column's hits as the lidar casts) and for parry3d, and VLP-16 scans/s of the
+//! column's hits as the lidar casts), for Intel's Embree 3 (single rays, and fans of a column
+//! in packets of 4, 8 and 16; feature `embree`) and for parry3d, and VLP-16 scans/s of the
 //! full sensor model (all cores). Run: `cargo bench -p vinebench-sim --bench raycast`.
 
 use std::hint::black_box;
@@ -11,6 +12,11 @@ use sim::config::SimConfig;
 use sim::raycast::{Bvh, Hit, ParryCaster, RayCaster};
 use sim::sensors::{LidarSensor, Sensor, vlp16_directions};
 use sim::{Simulation, rng};
+#[cfg(feature = "embree")]
+use {
+    embree::{Packet, SceneOptions},
+    sim::raycast::EmbreeCaster,
+};
 
 /// One sweep of lidar rays from a pose in the middle of a lane, cast on one thread.
 fn sweep(
@@ -63,6 +69,21 @@ fn benches(c: &mut Criterion) {
     group.bench_function("bvh_guessed", |b| {
         b.iter(|| black_box(sweep_guessed(&bvh, &origin, &dirs, &mut out)))
     });
+    // Embree as `raycaster = "embree"` builds it (spatial-split SAH on one thread), the same
+    // rays and range gate: one rtcIntersect1 per ray, then each column in packets.
+    #[cfg(feature = "embree")]
+    for (name, packet) in [
+        ("embree", Packet::Single),
+        ("embree_x4", Packet::X4),
+        ("embree_x8", Packet::X8),
+        ("embree_x16", Packet::X16),
+    ] {
+        let embree = EmbreeCaster::with_options(mesh, SceneOptions::default(), packet)
+            .expect("Embree builds the default world");
+        group.bench_function(name, |b| {
+            b.iter(|| black_box(sweep(&embree, &origin, &dirs, &mut out)))
+        });
+    }
     let parry = ParryCaster::build(mesh);
     group.sample_size(10);
     group.bench_function("parry3d", |b| {
@@ -96,6 +117,10 @@ fn benches(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("bvh_build", |b| {
         b.iter(|| black_box(Bvh::build(mesh).node_count()))
+    });
+    #[cfg(feature = "embree")]
+    group.bench_function("embree_build", |b| {
+        b.iter(|| black_box(EmbreeCaster::build(mesh).expect("Embree builds")))
     });
     group.finish();
 }

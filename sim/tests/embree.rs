@@ -7,6 +7,7 @@
 //! made with it do not depend on the build or the number of threads.
 #![cfg(feature = "embree")]
 
+use embree::{Packet, SceneOptions};
 use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -363,4 +364,33 @@ fn lidar_scans_with_embree_are_identical_across_builds_and_thread_counts() {
     let two = scans(2);
     assert_eq!(one.len(), 12);
     assert!(one == two, "lidar/2D scans differ between 1 and 2 threads");
+}
+
+#[test]
+fn embree_packets_answer_as_single_rays() {
+    // The bench offers rtcIntersect4/8/16 for a column's fan; they must give the answers of
+    // one rtcIntersect1 per ray, bit for bit.
+    let (cfg, sim) = default_world();
+    let mesh = &sim.world.mesh;
+    let bvh = Bvh::build(mesh);
+    let single = EmbreeCaster::with_options(mesh, SceneOptions::default(), Packet::Single)
+        .expect("Embree builds");
+    let reference = sweeps(&cfg, &sim, &bvh, &single, 2);
+    let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.triangle));
+    for packet in [Packet::X4, Packet::X8, Packet::X16] {
+        let caster = EmbreeCaster::with_options(mesh, SceneOptions::default(), packet)
+            .expect("Embree builds");
+        let cases = sweeps(&cfg, &sim, &bvh, &caster, 2);
+        let differ = cases
+            .iter()
+            .zip(&reference)
+            .filter(|(a, b)| bits(a.embree) != bits(b.embree))
+            .count();
+        assert_eq!(
+            differ,
+            0,
+            "{packet:?}: {differ} of {} rays differ",
+            cases.len()
+        );
+    }
 }

@@ -3,8 +3,8 @@
 //! against, hit for hit and in rays per second.
 //!
 //! Built from the same hittable triangles as the other casters; Embree's triangle index
-//! (primID) is the position in that list, mapped back to the mesh index. Lanes of a fan go to
-//! Embree in packets ([`FAN_PACKET`]).
+//! (primID) is the position in that list, mapped back to the mesh index. Fans go to Embree
+//! as [`FAN_PACKET`] says (single rays: packets measured no faster).
 //!
 //! # Where it can differ from the BVH
 //! - `t`: Embree's Möller–Trumbore divides with a Newton-refined approximate reciprocal where
@@ -26,9 +26,12 @@ use super::triangle::hittable;
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
 
-/// How fans go to Embree. Measured with `cargo bench -p vinebench-sim --bench raycast --
-/// rays_one_thread` on the default world's VLP-16 columns (16 rays from one origin).
-pub const FAN_PACKET: Packet = Packet::X8;
+/// How fans go to Embree: one `rtcIntersect1` per ray. Packets did not pay clearly on the
+/// default world's VLP-16 columns (16 beams spread over 30 degrees from one origin, which
+/// diverge too fast to stay coherent): on this 2-core AVX2 machine, busy, rtcIntersect4/8/16
+/// ran from 4 % slower to 8 % faster than single rays depending on the run. The
+/// `rays_one_thread` bench runs all four, so the choice can be checked on a quiet machine.
+pub const FAN_PACKET: Packet = Packet::Single;
 
 /// An Embree scene of the hittable triangles of a [`Mesh`].
 #[derive(Debug)]
@@ -90,7 +93,8 @@ impl RayCaster for EmbreeCaster {
             .map(|h| self.hit(h))
     }
 
-    /// Fans go to Embree in packets ([`FAN_PACKET`]); the guesses in `out` are not used
+    /// Fans go to Embree as the caster was built to send them ([`FAN_PACKET`] by default);
+    /// the guesses in `out` are not used
     /// (Embree has no way to start from one), so this is also what `cast_fan` runs.
     fn cast_fan_guessed(
         &self,
