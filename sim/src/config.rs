@@ -60,6 +60,17 @@ impl SimConfig {
         Ok(cfg)
     }
 
+    /// The configuration in `path`, or without one the embedded defaults
+    /// (`configs/world.toml`, [`crate::DEFAULT_CONFIG_TOML`]).
+    pub fn load(path: Option<&Path>) -> Result<Self, SimError> {
+        match path {
+            Some(p) => Self::from_file(p),
+            None => {
+                Self::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")
+            }
+        }
+    }
+
     pub fn from_file(path: &Path) -> Result<Self, SimError> {
         let text = std::fs::read_to_string(path).map_err(|e| SimError::Io {
             path: path.to_owned(),

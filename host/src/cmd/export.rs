@@ -38,7 +38,7 @@ pub struct ExportArgs {
 
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let config = super::simulate::load_config(args.world.as_deref())?;
+    let config = sim::SimConfig::load(args.world.as_deref())?;
     let sim = Simulation::new(&config, &args.scenario, args.seed)?;
     let duration_ns = match args.max_time {
         Some(s) if s.is_finite() && s > 0.0 => sim.duration_ns().min((s * 1e9) as i64),

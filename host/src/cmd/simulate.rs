@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use sim::{SensorSet, SimConfig, Simulation};
+use sim::{SensorSet, Simulation};
 
 use crate::dump::Dump;
 
@@ -33,23 +33,13 @@ pub struct SimulateArgs {
     pub out: Option<PathBuf>,
 }
 
-/// Loads the simulator configuration: the file given, or the embedded defaults.
-pub fn load_config(path: Option<&std::path::Path>) -> anyhow::Result<SimConfig> {
-    Ok(match path {
-        Some(p) => SimConfig::from_file(p)?,
-        None => {
-            SimConfig::from_toml_str(sim::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")?
-        }
-    })
-}
-
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let sensors: SensorSet = args
         .sensors
         .parse()
         .map_err(|e: String| anyhow::anyhow!("--sensors {}: {e}", args.sensors))?;
-    let config = load_config(args.world.as_deref())?;
+    let config = sim::SimConfig::load(args.world.as_deref())?;
     let sim = Simulation::new(&config, &args.scenario, args.seed)?;
     let mut dump = match &args.out {
         Some(dir) => Some(

@@ -85,7 +85,7 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
             plan.out.display()
         );
     }
-    let config = crate::cmd::simulate::load_config(plan.world.as_deref())?;
+    let config = sim::SimConfig::load(plan.world.as_deref())?;
     // Check the scenarios before starting anything.
     for s in &plan.scenarios {
         if !config.scenarios.contains_key(s) {

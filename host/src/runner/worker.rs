@@ -42,7 +42,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let limit = job.memory_limit_mb.saturating_mul(1 << 20);
     rlimit::setrlimit(rlimit::Resource::AS, limit, limit).context("cannot set the memory limit")?;
     let started = Instant::now();
-    let config = crate::cmd::simulate::load_config(job.world.as_deref())?;
+    let config = sim::SimConfig::load(job.world.as_deref())?;
     let plugin = plugin_api::load(&job.plugin)?;
     let sensors = sensor_set(&plugin.requirements.sensors);
     let sim = Simulation::new(&config, &job.scenario, job.seed)?;
