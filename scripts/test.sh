@@ -12,4 +12,7 @@ cargo fmt --all -- --check
 # build scripts and proc macros compile at opt-level 3). The lints are the same: no code
 # depends on debug_assertions.
 cargo clippy --workspace --all-targets --release -- -D warnings
+# A single-node Slurm on localhost for the Slurm sweep test, which then must not skip.
+bash scripts/slurm-local.sh
+export VINEBENCH_REQUIRE_SLURM=1
 cargo test --workspace --release

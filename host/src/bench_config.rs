@@ -4,10 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Alignment of each estimate to ground truth before APE.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Align {
     None,
@@ -59,6 +59,14 @@ impl PluginEntry {
     }
 }
 
+/// A `[[plugins]]` entry with its library found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedPlugin {
+    pub label: String,
+    pub library: PathBuf,
+    pub params_toml: String,
+}
+
 /// A route limit must be a positive, finite number of seconds; the reason when not.
 pub fn check_max_time(seconds: f64) -> Result<(), &'static str> {
     if seconds.is_finite() && seconds > 0.0 {
@@ -90,9 +98,14 @@ fn default_memory() -> u64 {
 pub struct BenchConfig {
     #[serde(default = "default_scenarios")]
     pub scenarios: Vec<String>,
-    /// Seed of the sensor noise.
+    /// Seed of the sensor noise (default 0).
+    pub seed: Option<u64>,
+    /// Sweeps only (`vinebench sweep`): every cell runs once per seed (instead of `seed`).
+    pub seeds: Option<Vec<u64>>,
+    /// Sweeps only: world keys by dotted path (`"vineyard.growth_stage" = [0, 2, 4]`), each
+    /// with the values it takes; the sweep crosses them all.
     #[serde(default)]
-    pub seed: u64,
+    pub axes: toml::Table,
     /// Simulator configuration (relative to this file); default: the embedded one.
     pub world: Option<PathBuf>,
     /// Extra directories to search for plugins (relative to this file).
@@ -138,7 +151,46 @@ impl BenchConfig {
         Ok(cfg)
     }
 
+    /// Every `[[plugins]]` entry found on the search path: (label, library, parameters as
+    /// TOML), in file order. `file` names the culprit in the error.
+    pub fn resolve_plugins(&self, file: &Path) -> anyhow::Result<Vec<ResolvedPlugin>> {
+        let dirs = crate::plugins::search_path(&self.plugin_dirs);
+        self.plugins
+            .iter()
+            .map(|entry| {
+                let what = entry
+                    .name
+                    .clone()
+                    .or_else(|| entry.path.as_ref().map(|p| p.display().to_string()))
+                    .unwrap_or_default();
+                let library = crate::plugins::resolve(&what, &dirs)
+                    .with_context(|| file.display().to_string())?;
+                Ok(ResolvedPlugin {
+                    label: entry.label(),
+                    library,
+                    params_toml: toml::to_string(&entry.params)?,
+                })
+            })
+            .collect()
+    }
+
+    /// The seed of a bench (not a sweep).
+    pub fn bench_seed(&self) -> u64 {
+        self.seed.unwrap_or(0)
+    }
+
+    /// Whether the file has a sweep's keys (`seeds`, `[axes]`).
+    pub fn is_sweep(&self) -> bool {
+        self.seeds.is_some() || !self.axes.is_empty()
+    }
+
     fn validate(&self) -> anyhow::Result<()> {
+        if self.seed.is_some() && self.seeds.is_some() {
+            bail!("seed and seeds: give one of them");
+        }
+        if self.seeds.as_ref().is_some_and(Vec::is_empty) {
+            bail!("seeds: empty list");
+        }
         if self.scenarios.is_empty() {
             bail!("scenarios: empty list");
         }

@@ -9,4 +9,5 @@ pub mod plugins;
 pub mod report;
 pub mod rig;
 pub mod runner;
+pub mod sweep;
 pub mod topview;

@@ -22,11 +22,16 @@ enum Command {
     Run(vinebench::cmd::run::RunArgs),
     /// Run a matrix of scenarios x plugins and write the paper's table.
     Bench(vinebench::cmd::bench::BenchArgs),
+    /// Run a sweep (a bench file plus seeds and world axes), resumable, here or on Slurm.
+    Sweep(vinebench::cmd::sweep::SweepArgs),
     /// List the plugins on the search path.
     Plugins(vinebench::cmd::plugins::PluginsArgs),
     /// One run in its own process (started by run and bench).
     #[command(hide = true)]
     Worker(vinebench::cmd::worker::WorkerArgs),
+    /// One run of a Slurm sweep (started by sbatch).
+    #[command(hide = true)]
+    SweepTask(vinebench::cmd::sweep::SweepTaskArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -38,6 +43,8 @@ fn main() -> std::process::ExitCode {
         Command::Eval(args) => vinebench::cmd::eval::run(&args),
         Command::Run(args) => vinebench::cmd::run::run(&args),
         Command::Bench(args) => vinebench::cmd::bench::run(&args),
+        Command::Sweep(args) => vinebench::cmd::sweep::run(&args),
+        Command::SweepTask(args) => vinebench::cmd::sweep::run_task(&args),
         Command::Plugins(args) => vinebench::cmd::plugins::run(&args),
         Command::Worker(args) => vinebench::cmd::worker::run(&args),
     };

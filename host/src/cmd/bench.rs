@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::Context as _;
 use clap::Args;
 
 use crate::bench_config::BenchConfig;
@@ -42,29 +41,21 @@ pub fn max_time_flag(seconds: Option<f64>) -> anyhow::Result<Option<f64>> {
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let max_time_s = max_time_flag(args.max_time)?;
     let cfg = BenchConfig::from_file(&args.file)?;
-    let dirs = crate::plugins::search_path(&cfg.plugin_dirs);
+    anyhow::ensure!(
+        !cfg.is_sweep(),
+        "{}: has seeds or [axes], which make it a sweep: run it with `vinebench sweep`",
+        args.file.display()
+    );
+    let resolved = cfg.resolve_plugins(&args.file)?;
+    let labels: Vec<String> = resolved.iter().map(|p| p.label.clone()).collect();
     let mut runs = Vec::new();
-    let mut labels = Vec::new();
-    let mut resolved = Vec::new();
-    for entry in &cfg.plugins {
-        let what = entry
-            .name
-            .clone()
-            .or_else(|| entry.path.as_ref().map(|p| p.display().to_string()))
-            .unwrap_or_default();
-        let path = crate::plugins::resolve(&what, &dirs)
-            .with_context(|| args.file.display().to_string())?;
-        let params = toml::to_string(&entry.params)?;
-        labels.push(entry.label());
-        resolved.push((entry.label(), path, params));
-    }
     for scenario in &cfg.scenarios {
-        for (label, path, params) in &resolved {
+        for p in &resolved {
             runs.push(PlannedRun {
                 scenario: scenario.clone(),
-                label: label.clone(),
-                plugin: path.clone(),
-                params_toml: params.clone(),
+                label: p.label.clone(),
+                plugin: p.library.clone(),
+                params_toml: p.params_toml.clone(),
             });
         }
     }
@@ -79,7 +70,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             .clone()
             .unwrap_or_else(|| PathBuf::from("results").join(stem)),
         world: cfg.world.clone(),
-        seed: cfg.seed,
+        seed: cfg.bench_seed(),
         scenarios: cfg.scenarios.clone(),
         labels,
         runs,
@@ -90,6 +81,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         dataset: None,
         max_time_s: max_time_s.or(cfg.max_time_s),
         share_simulation: cfg.share_simulation,
+        bars: true,
     };
     report(&plan).map(drop)
 }

@@ -7,4 +7,5 @@ pub mod plugins;
 pub mod record;
 pub mod run;
 pub mod simulate;
+pub mod sweep;
 pub mod worker;

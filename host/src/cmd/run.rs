@@ -91,6 +91,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         max_time_s,
         // One run: nothing to share.
         share_simulation: false,
+        bars: true,
     };
     let executed = crate::cmd::bench::report(&plan)?;
     // One run: its failure is the command's failure (the results folder is still written).

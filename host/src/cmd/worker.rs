@@ -38,5 +38,22 @@ pub fn run(args: &WorkerArgs) -> anyhow::Result<()> {
         .expect("clap requires --job without --sensors");
     let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
     let job: Job = serde_json::from_str(&text).with_context(|| path.display().to_string())?;
+    exit_with_parent();
     worker::work(&job)
+}
+
+/// A worker whose supervisor is gone (killed with SIGKILL, which it cannot pass on) has no
+/// one to report to: it exits rather than run on unseen. Checked twice a second, since the
+/// orphan is adopted by another process and its parent id changes.
+fn exit_with_parent() {
+    let parent = std::os::unix::process::parent_id();
+    std::thread::spawn(move || {
+        loop {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+            if std::os::unix::process::parent_id() != parent {
+                eprintln!("the supervising process is gone; stopping");
+                std::process::exit(3);
+            }
+        }
+    });
 }

@@ -56,7 +56,13 @@ pub struct Plan {
     /// Feed the runs of a scenario that need the same sensors from one simulation
     /// ([`feed`]) instead of one per run.
     pub share_simulation: bool,
+    /// Draw a progress bar per run on the terminal (a sweep draws its own instead).
+    pub bars: bool,
 }
+
+/// Called as each run of a plan ends, with its index in `Plan::runs`, its record and its
+/// finished folder (evaluated, `job.json` removed), which the callee may move away.
+pub type OnDone<'a> = &'a (dyn Fn(usize, &RunRecord, &Path) + Sync);
 
 /// What came out of a whole matrix.
 #[derive(Debug)]
@@ -98,7 +104,7 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
         std::fs::remove_dir_all(&tmp)?;
     }
     std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
-    let written = run_all(plan, &config, &tmp).and_then(|(records, truths)| {
+    let written = run_all(plan, &config, &tmp, &|_, _, _| {}).and_then(|(records, truths)| {
         let table =
             crate::report::write_reports(&tmp, &plan.scenarios, &plan.labels, &records, &truths)?;
         std::fs::File::create(tmp.join(MARKER))?;
@@ -123,6 +129,25 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
     })
 }
 
+/// Runs the plan's runs in `work` (one folder per run, `work/<scenario>/<label>`, which
+/// must not exist yet) without writing any report, calling `on_done` as each run ends: the
+/// sweep's way in, which files every run on its own as soon as it is complete.
+pub fn execute_each(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<RunRecord>> {
+    let config = sim::SimConfig::load(plan.world.as_deref())?;
+    for s in &plan.scenarios {
+        anyhow::ensure!(
+            config.scenarios.contains_key(s),
+            "unknown scenario '{s}' in {}",
+            plan.world.as_deref().map_or_else(
+                || "the embedded world".to_owned(),
+                |p| p.display().to_string()
+            )
+        );
+    }
+    std::fs::create_dir_all(work).with_context(|| work.display().to_string())?;
+    run_all(plan, &config, work, on_done).map(|(records, _)| records)
+}
+
 /// Points `latest` beside the results folder at it (best effort: a missing link loses nothing).
 fn link_latest(out: &Path) {
     let (Some(parent), Some(name)) = (out.parent(), out.file_name()) else {
@@ -141,6 +166,7 @@ fn run_all(
     plan: &Plan,
     config: &sim::SimConfig,
     tmp: &Path,
+    on_done: OnDone,
 ) -> anyhow::Result<(Vec<RunRecord>, Vec<ScenarioTruth>)> {
     // Ground truth of each scenario for the plots: the trajectory alone is cheap.
     let world = sim::world::World::build(&config.vineyard, &config.terrain, config.world_seed);
@@ -161,7 +187,11 @@ fn run_all(
         });
     }
 
-    let bars = MultiProgress::new();
+    let bars = if plan.bars {
+        MultiProgress::new()
+    } else {
+        MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
+    };
     let style = ProgressStyle::with_template("{prefix:>28} [{bar:30}] {percent:>3}% {msg}")
         .expect("valid template")
         .progress_chars("=> ");
@@ -231,6 +261,7 @@ fn run_all(
                             bar.abandon_with_message(format!("failed: {why}"))
                         }
                     }
+                    on_done(i, &record, &dirs[i]);
                     records.lock().expect("no panics while holding the lock")[i] = Some(record);
                     release();
                 };

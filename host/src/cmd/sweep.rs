@@ -1,0 +1,200 @@
+//! `vinebench sweep FILE.toml`: a bench file plus axes (seeds, world keys), every cell one
+//! run, resumable, here or on a Slurm cluster; then the aggregate ([`crate::sweep`]).
+
+use std::io::IsTerminal as _;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::report::{RunRecord, RunStatus};
+use crate::sweep::{self, Cell, Sweep, aggregate, slurm};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Executor {
+    /// Runs here, `--jobs` at once.
+    Local,
+    /// Submits the runs as Slurm job arrays and waits for them.
+    Slurm,
+}
+
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// The sweep: a bench file with `seeds` and `[axes]` (e.g. configs/sweep-demo.toml).
+    pub file: PathBuf,
+    /// Sweep folder (default: results/<file stem>); a sweep started again in the same
+    /// folder runs only what is missing.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Runs at once (local), or array tasks at once (Slurm; default: no limit).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    #[arg(long, value_enum, default_value_t = Executor::Local)]
+    pub executor: Executor,
+    /// Only aggregate the runs already in the folder (e.g. after a Slurm sweep).
+    #[arg(long)]
+    pub collect: bool,
+    /// Cut every route at this many simulated seconds (overrides the file's `max_time_s`).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub max_time: Option<f64>,
+    /// An extra option for `sbatch` (repeatable), e.g. `--sbatch-arg=--partition=cpu`.
+    #[arg(long = "sbatch-arg", value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch_args: Vec<String>,
+    /// Seconds between two looks at the Slurm queue.
+    #[arg(long, default_value_t = 10.0, hide = true)]
+    pub poll_s: f64,
+}
+
+/// `vinebench sweep-task TASKS.json --index I`: one array task (started by Slurm).
+#[derive(Debug, Args)]
+pub struct SweepTaskArgs {
+    pub tasks: PathBuf,
+    #[arg(long)]
+    pub index: usize,
+}
+
+pub fn run_task(args: &SweepTaskArgs) -> anyhow::Result<()> {
+    slurm::run_task(&args.tasks, args.index)
+}
+
+/// Progress: a bar with ETA on a terminal, else one line per finished run.
+struct Progress {
+    total: usize,
+    done: AtomicUsize,
+    started: Instant,
+    bar: Option<ProgressBar>,
+}
+
+impl Progress {
+    fn new(total: usize) -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = ProgressBar::new(total as u64);
+            bar.set_style(
+                ProgressStyle::with_template(
+                    "{elapsed_precise} [{bar:40}] {pos}/{len} runs, ETA {eta}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
+            );
+            bar
+        });
+        Self {
+            total,
+            done: AtomicUsize::new(0),
+            started: Instant::now(),
+            bar,
+        }
+    }
+
+    fn finished(&self, cell: &Cell, record: &RunRecord) {
+        let k = self.done.fetch_add(1, Ordering::SeqCst) + 1;
+        let outcome = match (&record.status, &record.ape) {
+            (RunStatus::Ok, Some(ape)) => format!("ok, ATE RMSE {:.3} m", ape.rmse),
+            (RunStatus::Ok, None) => "ok".to_owned(),
+            (RunStatus::Failed(why), _) => format!("failed: {why}"),
+        };
+        let line = format!("[{k}/{}] {}: {outcome}", self.total, cell.describe());
+        match &self.bar {
+            Some(bar) => {
+                bar.println(line);
+                bar.inc(1);
+            }
+            None => {
+                let elapsed = self.started.elapsed().as_secs_f64();
+                let eta = elapsed / k as f64 * (self.total - k) as f64;
+                println!("{line} (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
+            }
+        }
+    }
+
+    fn set(&self, filed: usize) {
+        if let Some(bar) = &self.bar {
+            bar.set_position(filed as u64);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
+    let max_time_s = crate::cmd::bench::max_time_flag(args.max_time)?;
+    let sweep = Sweep::load(&args.file, max_time_s)?;
+    let out = args.out.clone().unwrap_or_else(|| {
+        let stem = args
+            .file
+            .file_stem()
+            .map_or_else(|| "sweep".into(), |s| s.to_string_lossy().into_owned());
+        PathBuf::from("results").join(stem)
+    });
+    anyhow::ensure!(
+        args.poll_s.is_finite() && args.poll_s > 0.0,
+        "--poll-s {}: must be positive",
+        args.poll_s
+    );
+    sweep.prepare(&out)?;
+    if !args.collect {
+        let missing = sweep.missing(&out);
+        let distinct = sweep
+            .cells
+            .iter()
+            .map(|c| &c.key)
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        println!(
+            "{}: {} runs, {} done, {} to run",
+            args.file.display(),
+            distinct,
+            distinct - missing.len(),
+            missing.len()
+        );
+        if !missing.is_empty() {
+            let progress = Progress::new(missing.len());
+            match args.executor {
+                Executor::Local => {
+                    let jobs = args
+                        .jobs
+                        .or(sweep.cfg.jobs)
+                        .unwrap_or_else(crate::cmd::bench::default_jobs);
+                    sweep::run_local(&sweep, &out, &missing, jobs, &|cell, record| {
+                        progress.finished(cell, record)
+                    })?;
+                }
+                Executor::Slurm => {
+                    let options = slurm::Options {
+                        at_once: args.jobs.unwrap_or(0),
+                        sbatch_args: args.sbatch_args.clone(),
+                    };
+                    let ids = slurm::submit(&sweep, &out, &missing, &options)?;
+                    println!("submitted Slurm job array {}", ids.join(", "));
+                    slurm::wait(
+                        &ids,
+                        &out,
+                        &missing,
+                        Duration::from_secs_f64(args.poll_s),
+                        &|filed| progress.set(filed),
+                    )?;
+                }
+            }
+            progress.finish();
+        }
+    }
+    let agg = aggregate::collect(&sweep, &out)?;
+    aggregate::write(&agg, &out)?;
+    println!("{}", aggregate::render_markdown(&agg));
+    println!("results: {}", out.display());
+    let missing = agg.missing();
+    if missing > 0 && !args.collect {
+        anyhow::bail!(
+            "{missing} runs did not file a result (see {}/slurm/*/task-*.log if on Slurm); \
+             run the sweep again to run them",
+            out.display()
+        );
+    }
+    Ok(())
+}

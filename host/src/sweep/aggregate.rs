@@ -1,0 +1,659 @@
+//! A sweep's aggregate: per cell without the seed (scenario, system, point of the axes), the
+//! number of runs ok / failed / missing and mean ± std, min and max of ATE RMSE, accepted
+//! and false loops, and real-time factor.
+//!
+//! Files, each a pure function of the runs' files:
+//! - `sweep.json` and `sweep.csv`: accuracy (ATE, loops, counts). They hold nothing measured
+//!   with a clock, so an interrupted and resumed sweep, or one run on Slurm, gives them
+//!   byte-identical to an uninterrupted local one.
+//! - `speed.csv`: real-time factor, CPU time and peak memory, which depend on the machine.
+//! - `sweep.md`: both, as tables, and the failed runs with their reasons.
+//! - `plots/<scenario>-ate-vs-<axis>.svg`: ATE RMSE mean ± std (error bars over the seeds)
+//!   against each axis that takes two values or more, one line per system and point of the
+//!   other axes.
+//!
+//! Standard deviations are the sample's (n − 1 in the denominator), absent for n < 2.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Context as _;
+use serde::Serialize;
+
+use super::{Cell, Sweep, read_filed, run_dir, value_text, write_atomic};
+
+/// mean ± std, min, max of some numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Summary {
+    pub mean: f64,
+    pub std: Option<f64>,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// The summary of `xs` (in the given order, so sums are reproducible); `None` if empty.
+pub fn summarize(xs: &[f64]) -> Option<Summary> {
+    if xs.is_empty() {
+        return None;
+    }
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let std = (xs.len() > 1)
+        .then(|| (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt());
+    Some(Summary {
+        mean,
+        std,
+        min: xs.iter().copied().fold(f64::INFINITY, f64::min),
+        max: xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    })
+}
+
+/// One row of the aggregate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub scenario: String,
+    pub system: String,
+    /// The value of every axis, as TOML text, in axis order.
+    pub axes: Vec<(String, String)>,
+    pub n_ok: usize,
+    pub n_failed: usize,
+    /// Runs not (yet) in `runs/`.
+    pub n_missing: usize,
+    pub ate_rmse_m: Option<Summary>,
+    pub loops_accepted: Option<Summary>,
+    pub loops_false: Option<Summary>,
+    /// `seed: reason` of each failed run.
+    pub failures: Vec<String>,
+    #[serde(skip)]
+    pub speed: Speed,
+}
+
+/// What depends on the machine: kept out of `sweep.json` and `sweep.csv`.
+#[derive(Debug, Clone, Default)]
+pub struct Speed {
+    pub realtime_factor: Option<Summary>,
+    pub cpu_s: Option<Summary>,
+    pub peak_rss_mb: Option<Summary>,
+}
+
+/// The aggregate of a sweep.
+#[derive(Debug, Clone, Serialize)]
+pub struct Aggregate {
+    pub scenarios: Vec<String>,
+    pub systems: Vec<String>,
+    pub seeds: Vec<u64>,
+    /// Every axis with its values as TOML text.
+    pub axes: Vec<(String, Vec<String>)>,
+    pub rows: Vec<Row>,
+}
+
+impl Aggregate {
+    /// Runs not in `runs/` yet, over all rows.
+    pub fn missing(&self) -> usize {
+        self.rows.iter().map(|r| r.n_missing).sum()
+    }
+}
+
+fn number(v: &serde_json::Value, path: &[&str]) -> Option<f64> {
+    let mut at = v;
+    for p in path {
+        at = at.get(p)?;
+    }
+    at.as_f64()
+}
+
+fn read_json(path: &Path) -> anyhow::Result<serde_json::Value> {
+    let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    serde_json::from_str(&text).with_context(|| path.display().to_string())
+}
+
+/// Reads the runs of every cell of `sweep` from `out/runs`.
+pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
+    // Rows in cell order; cells differ only by seed within a row.
+    let mut rows: Vec<(Row, Vec<&Cell>)> = Vec::new();
+    for cell in &sweep.cells {
+        let same =
+            |r: &Row| r.scenario == cell.scenario && r.system == cell.label && r.axes == cell.point;
+        match rows.iter_mut().find(|(r, _)| same(r)) {
+            Some((_, cells)) => cells.push(cell),
+            None => rows.push((
+                Row {
+                    scenario: cell.scenario.clone(),
+                    system: cell.label.clone(),
+                    axes: cell.point.clone(),
+                    n_ok: 0,
+                    n_failed: 0,
+                    n_missing: 0,
+                    ate_rmse_m: None,
+                    loops_accepted: None,
+                    loops_false: None,
+                    failures: Vec::new(),
+                    speed: Speed::default(),
+                },
+                vec![cell],
+            )),
+        }
+    }
+    let mut out_rows = Vec::with_capacity(rows.len());
+    for (mut row, cells) in rows {
+        let (mut ate, mut accepted, mut false_, mut rtf, mut cpu, mut rss) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
+        for cell in cells {
+            let dir = run_dir(out, &cell.key);
+            if !dir.exists() {
+                row.n_missing += 1;
+                continue;
+            }
+            let filed = read_filed(&dir)?;
+            if let Some(why) = filed.status.strip_prefix("failed: ") {
+                row.n_failed += 1;
+                row.failures.push(format!("seed {}: {why}", cell.seed));
+                continue;
+            }
+            let metrics = read_json(&dir.join(crate::runner::files::METRICS))?;
+            let culprit = || {
+                dir.join(crate::runner::files::METRICS)
+                    .display()
+                    .to_string()
+            };
+            row.n_ok += 1;
+            ate.push(number(&metrics, &["ape", "rmse"]).with_context(culprit)?);
+            accepted.push(number(&metrics, &["loops", "accepted"]).with_context(culprit)?);
+            false_.push(number(&metrics, &["loops", "accepted_false"]).with_context(culprit)?);
+            if let Ok(timing) = read_json(&dir.join(crate::runner::files::TIMING)) {
+                rtf.extend(number(&timing, &["realtime_factor_plugin"]));
+                cpu.extend(number(&timing, &["cpu_s"]));
+                rss.extend(number(&timing, &["peak_rss_mb"]));
+            }
+        }
+        row.ate_rmse_m = summarize(&ate);
+        row.loops_accepted = summarize(&accepted);
+        row.loops_false = summarize(&false_);
+        row.speed = Speed {
+            realtime_factor: summarize(&rtf),
+            cpu_s: summarize(&cpu),
+            peak_rss_mb: summarize(&rss),
+        };
+        out_rows.push(row);
+    }
+    let mut systems: Vec<String> = Vec::new();
+    for c in &sweep.cells {
+        if !systems.contains(&c.label) {
+            systems.push(c.label.clone());
+        }
+    }
+    Ok(Aggregate {
+        scenarios: sweep.cfg.scenarios.clone(),
+        systems,
+        seeds: sweep.seeds.clone(),
+        axes: sweep
+            .axes
+            .iter()
+            .map(|a| (a.path.clone(), a.values.iter().map(value_text).collect()))
+            .collect(),
+        rows: out_rows,
+    })
+}
+
+fn fixed(x: Option<f64>) -> String {
+    x.map_or_else(String::new, |v| format!("{v:.6}"))
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_owned()
+    }
+}
+
+fn csv_head(agg: &Aggregate) -> Vec<String> {
+    let mut head = vec!["scenario".to_owned(), "system".to_owned()];
+    head.extend(agg.axes.iter().map(|(p, _)| p.clone()));
+    head
+}
+
+fn csv_key(row: &Row) -> Vec<String> {
+    let mut line = vec![row.scenario.clone(), row.system.clone()];
+    line.extend(row.axes.iter().map(|(_, v)| v.clone()));
+    line
+}
+
+fn summary_cols(s: Option<Summary>) -> [String; 4] {
+    [
+        fixed(s.map(|s| s.mean)),
+        fixed(s.and_then(|s| s.std)),
+        fixed(s.map(|s| s.min)),
+        fixed(s.map(|s| s.max)),
+    ]
+}
+
+/// `sweep.csv`.
+pub fn render_csv(agg: &Aggregate) -> String {
+    let mut head = csv_head(agg);
+    head.extend(["n_ok", "n_failed", "n_missing"].map(str::to_owned));
+    for m in ["ate_rmse_m", "loops_accepted", "loops_false"] {
+        for s in ["mean", "std", "min", "max"] {
+            head.push(format!("{m}_{s}"));
+        }
+    }
+    let mut out = head
+        .iter()
+        .map(|h| csv_field(h))
+        .collect::<Vec<_>>()
+        .join(",")
+        + "\n";
+    for row in &agg.rows {
+        let mut line = csv_key(row);
+        line.extend([row.n_ok, row.n_failed, row.n_missing].map(|n| n.to_string()));
+        for s in [row.ate_rmse_m, row.loops_accepted, row.loops_false] {
+            line.extend(summary_cols(s));
+        }
+        out += &(line
+            .iter()
+            .map(|f| csv_field(f))
+            .collect::<Vec<_>>()
+            .join(",")
+            + "\n");
+    }
+    out
+}
+
+/// `speed.csv`.
+pub fn render_speed_csv(agg: &Aggregate) -> String {
+    let mut head = csv_head(agg);
+    head.push("n".to_owned());
+    for m in ["realtime_factor", "cpu_s", "peak_rss_mb"] {
+        for s in ["mean", "std", "min", "max"] {
+            head.push(format!("{m}_{s}"));
+        }
+    }
+    let mut out = head
+        .iter()
+        .map(|h| csv_field(h))
+        .collect::<Vec<_>>()
+        .join(",")
+        + "\n";
+    for row in &agg.rows {
+        let mut line = csv_key(row);
+        line.push(row.n_ok.to_string());
+        for s in [
+            row.speed.realtime_factor,
+            row.speed.cpu_s,
+            row.speed.peak_rss_mb,
+        ] {
+            line.extend(summary_cols(s));
+        }
+        out += &(line
+            .iter()
+            .map(|f| csv_field(f))
+            .collect::<Vec<_>>()
+            .join(",")
+            + "\n");
+    }
+    out
+}
+
+fn pm(s: Option<Summary>, decimals: usize) -> String {
+    match s {
+        None => "–".to_owned(),
+        Some(Summary {
+            mean, std: None, ..
+        }) => format!("{mean:.decimals$}"),
+        Some(Summary {
+            mean,
+            std: Some(sd),
+            ..
+        }) => format!("{mean:.decimals$} ± {sd:.decimals$}"),
+    }
+}
+
+/// `sweep.md`.
+pub fn render_markdown(agg: &Aggregate) -> String {
+    let mut md = String::from("# Sweep\n\n");
+    let _ = writeln!(
+        md,
+        "Seeds: {} ({} per cell). Mean ± sample standard deviation over the seeds; ATE is \
+         the RMSE of the translation error after alignment, in metres.\n",
+        agg.seeds
+            .iter()
+            .map(u64::to_string)
+            .collect::<Vec<_>>()
+            .join(", "),
+        agg.seeds.len()
+    );
+    for (path, values) in &agg.axes {
+        let _ = writeln!(md, "- `{path}`: {}", values.join(", "));
+    }
+    if !agg.axes.is_empty() {
+        md.push('\n');
+    }
+    for scenario in &agg.scenarios {
+        let _ = writeln!(md, "## {scenario}\n");
+        let mut head = "| system |".to_owned();
+        let mut rule = "|---|".to_owned();
+        for (path, _) in &agg.axes {
+            head += &format!(" {path} |");
+            rule += "---|";
+        }
+        head += " ok / failed / missing | ATE RMSE (m) | min | max | loops accepted | false loops | RTF |";
+        rule += "---|---|---|---|---|---|---|";
+        let _ = writeln!(md, "{head}\n{rule}");
+        for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
+            let mut line = format!("| {} |", row.system);
+            for (_, v) in &row.axes {
+                line += &format!(" {v} |");
+            }
+            let _ = writeln!(
+                md,
+                "{line} {} / {} / {} | {} | {} | {} | {} | {} | {} |",
+                row.n_ok,
+                row.n_failed,
+                row.n_missing,
+                pm(row.ate_rmse_m, 3),
+                row.ate_rmse_m
+                    .map_or("–".into(), |s| format!("{:.3}", s.min)),
+                row.ate_rmse_m
+                    .map_or("–".into(), |s| format!("{:.3}", s.max)),
+                pm(row.loops_accepted, 1),
+                pm(row.loops_false, 1),
+                pm(row.speed.realtime_factor, 1),
+            );
+        }
+        md.push('\n');
+        for (path, values) in &agg.axes {
+            if values.len() > 1 {
+                let _ = writeln!(
+                    md,
+                    "![ATE against {path}](plots/{})\n",
+                    plot_name(scenario, path)
+                );
+            }
+        }
+    }
+    let failed: Vec<String> = agg
+        .rows
+        .iter()
+        .flat_map(|r| {
+            r.failures.iter().map(move |f| {
+                let point: Vec<String> = r.axes.iter().map(|(p, v)| format!("{p}={v}")).collect();
+                format!("- {} {} {}: {f}", r.scenario, r.system, point.join(" "))
+            })
+        })
+        .collect();
+    if !failed.is_empty() {
+        let _ = writeln!(md, "## Failed runs\n\n{}\n", failed.join("\n"));
+    }
+    let missing = agg.missing();
+    if missing > 0 {
+        let _ = writeln!(
+            md,
+            "**{missing} runs are missing**: the sweep has not finished (run it again to \
+             complete it).\n"
+        );
+    }
+    md
+}
+
+/// File name of a plot: ASCII letters, digits, `.`, `-`, `_` kept, the rest `_`.
+fn plot_name(scenario: &str, axis: &str) -> String {
+    let clean = |s: &str| -> String {
+        s.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || matches!(c, '.' | '-' | '_') {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect()
+    };
+    format!("{}-ate-vs-{}.svg", clean(scenario), clean(axis))
+}
+
+/// Colours of the systems, in order (Okabe–Ito, distinguishable in colour blindness).
+const COLOURS: [&str; 8] = [
+    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
+];
+const DASHES: [&str; 4] = ["", "6,3", "2,3", "8,3,2,3"];
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A "nice" step for about `n` ticks over `span`.
+fn tick_step(span: f64, n: f64) -> f64 {
+    let raw = span / n;
+    let mag = 10f64.powf(raw.log10().floor());
+    let f = raw / mag;
+    let nice = if f < 1.5 {
+        1.0
+    } else if f < 3.0 {
+        2.0
+    } else if f < 7.0 {
+        5.0
+    } else {
+        10.0
+    };
+    nice * mag
+}
+
+/// Axis values by path, as TOML text.
+type Point = Vec<(String, String)>;
+
+/// The SVG of ATE against `axis` (index `k`) on `scenario`; `None` if nothing to draw.
+pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> {
+    let (path, values) = &agg.axes[k];
+    // One series per (system, point of the other axes).
+    let mut series: BTreeMap<(usize, Point), Vec<(usize, Summary)>> = BTreeMap::new();
+    for row in agg.rows.iter().filter(|r| r.scenario == scenario) {
+        let Some(s) = row.ate_rmse_m else { continue };
+        let system = agg.systems.iter().position(|x| *x == row.system)?;
+        let x = values.iter().position(|v| *v == row.axes[k].1)?;
+        let mut others = row.axes.clone();
+        others.remove(k);
+        series.entry((system, others)).or_default().push((x, s));
+    }
+    if series.is_empty() {
+        return None;
+    }
+    let top = series
+        .values()
+        .flatten()
+        .map(|(_, s)| s.max.max(s.mean + s.std.unwrap_or(0.0)))
+        .fold(0.0, f64::max);
+    let step = tick_step(if top > 0.0 { top } else { 1.0 }, 5.0);
+    let y_max = (top / step).ceil().max(1.0) * step;
+    let (w, h, left, right, top_m, bottom) = (760.0, 440.0, 70.0, 250.0, 40.0, 60.0);
+    let pw = w - left - right;
+    let ph = h - top_m - bottom;
+    let n = values.len() as f64;
+    let xp = |i: usize| left + pw * (i as f64 + 0.5) / n;
+    let yp = |v: f64| top_m + ph * (1.0 - v / y_max);
+    let mut svg = String::new();
+    let _ = writeln!(
+        svg,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="DejaVu Sans, sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(svg, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = writeln!(
+        svg,
+        r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}: ATE RMSE against {}</text>"#,
+        left + pw / 2.0,
+        escape(scenario),
+        escape(path)
+    );
+    let mut v = 0.0;
+    while v <= y_max + step * 1e-9 {
+        let y = yp(v);
+        let _ = writeln!(
+            svg,
+            r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
+            left + pw,
+            left - 6.0,
+            y + 4.0,
+            trim_number(v, step)
+        );
+        v += step;
+    }
+    for (i, value) in values.iter().enumerate() {
+        let _ = writeln!(
+            svg,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+            xp(i),
+            top_m + ph + 18.0,
+            escape(value)
+        );
+    }
+    let _ = writeln!(
+        svg,
+        r#"<rect x="{left}" y="{top_m}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+        left + pw / 2.0,
+        h - 16.0,
+        escape(path)
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text transform="translate(18 {:.1}) rotate(-90)" text-anchor="middle">ATE RMSE (m), mean ± std over {} seeds</text>"#,
+        top_m + ph / 2.0,
+        agg.seeds.len()
+    );
+    let many = series.len();
+    for (j, ((system, others), points)) in series.iter().enumerate() {
+        let colour = COLOURS[system % COLOURS.len()];
+        let variant = series
+            .keys()
+            .filter(|(s, _)| s == system)
+            .position(|(_, o)| o == others)
+            .unwrap_or(0);
+        let dash = DASHES[variant % DASHES.len()];
+        // Side by side so that error bars do not hide each other.
+        let spacing = (0.3 * pw / n / many as f64).min(8.0);
+        let offset = (j as f64 - (many as f64 - 1.0) / 2.0) * spacing;
+        let pts: Vec<String> = points
+            .iter()
+            .map(|(x, s)| format!("{:.1},{:.1}", xp(*x) + offset, yp(s.mean)))
+            .collect();
+        let _ = writeln!(
+            svg,
+            r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}"/>"#,
+            pts.join(" ")
+        );
+        for (x, s) in points {
+            let cx = xp(*x) + offset;
+            if let Some(sd) = s.std {
+                let _ = writeln!(
+                    svg,
+                    r#"<path d="M{cx:.1},{:.1}V{:.1}M{:.1},{:.1}h8M{:.1},{:.1}h8" stroke="{colour}"/>"#,
+                    yp(s.mean - sd),
+                    yp(s.mean + sd),
+                    cx - 4.0,
+                    yp(s.mean - sd),
+                    cx - 4.0,
+                    yp(s.mean + sd)
+                );
+            }
+            let _ = writeln!(
+                svg,
+                r#"<circle cx="{cx:.1}" cy="{:.1}" r="3.5" fill="{colour}"/>"#,
+                yp(s.mean)
+            );
+        }
+        let ly = top_m + 10.0 + j as f64 * 20.0;
+        let lx = left + pw + 16.0;
+        let mut name = agg.systems[*system].clone();
+        if !others.is_empty() {
+            let o: Vec<String> = others.iter().map(|(p, v)| format!("{p}={v}")).collect();
+            name += &format!(" ({})", o.join(", "));
+        }
+        let _ = writeln!(
+            svg,
+            r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}"/><text x="{}" y="{}" font-size="11">{}</text>"#,
+            lx + 24.0,
+            lx + 30.0,
+            ly + 4.0,
+            escape(&name)
+        );
+    }
+    svg.push_str("</svg>\n");
+    Some(svg)
+}
+
+fn trim_number(v: f64, step: f64) -> String {
+    let decimals = if step >= 1.0 {
+        0
+    } else {
+        (-step.log10().floor()) as usize
+    };
+    format!("{v:.decimals$}")
+}
+
+/// Writes every aggregate file into `out` (each written whole, then renamed into place).
+pub fn write(agg: &Aggregate, out: &Path) -> anyhow::Result<()> {
+    write_atomic(
+        &out.join("sweep.json"),
+        (serde_json::to_string_pretty(agg)? + "\n").as_bytes(),
+    )?;
+    write_atomic(&out.join("sweep.csv"), render_csv(agg).as_bytes())?;
+    write_atomic(&out.join("speed.csv"), render_speed_csv(agg).as_bytes())?;
+    write_atomic(&out.join("sweep.md"), render_markdown(agg).as_bytes())?;
+    let plots = out.join("plots");
+    // Plots of an earlier aggregate that this one would not draw must not stay.
+    if plots.exists() {
+        std::fs::remove_dir_all(&plots).with_context(|| plots.display().to_string())?;
+    }
+    std::fs::create_dir_all(&plots).with_context(|| plots.display().to_string())?;
+    for scenario in &agg.scenarios {
+        for (k, (path, values)) in agg.axes.iter().enumerate() {
+            if values.len() < 2 {
+                continue;
+            }
+            if let Some(svg) = render_plot(agg, scenario, k) {
+                write_atomic(&plots.join(plot_name(scenario, path)), svg.as_bytes())?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summaries_use_the_sample_deviation() {
+        let s = summarize(&[1.0, 2.0, 3.0, 4.0]).expect("four numbers");
+        assert_eq!(s.mean, 2.5);
+        assert!((s.std.expect("n > 1") - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
+        assert_eq!((s.min, s.max), (1.0, 4.0));
+        let one = summarize(&[0.7]).expect("one number");
+        assert_eq!((one.mean, one.std, one.min, one.max), (0.7, None, 0.7, 0.7));
+        assert_eq!(summarize(&[]), None);
+    }
+
+    #[test]
+    fn ticks_are_round() {
+        for (span, step) in [
+            (1.0, 0.2),
+            (0.37, 0.1),
+            (0.3, 0.05),
+            (6.0, 1.0),
+            (40.0, 10.0),
+        ] {
+            assert!(
+                (tick_step(span, 5.0) - step).abs() < 1e-12,
+                "{span}: {step}"
+            );
+        }
+        assert_eq!(trim_number(0.15, 0.05), "0.15");
+        assert_eq!(trim_number(3.0, 1.0), "3");
+    }
+}

@@ -1,0 +1,544 @@
+//! Sweeps (`vinebench sweep`): a bench file plus axes — `seeds`, and world keys by their
+//! dotted path under `[axes]` — crossed with its scenarios and plugins. Every cell is one run
+//! exactly as `vinebench run` makes it, filed under a hash of its resolved configuration
+//! (`runs/<key>/`), so that
+//! - a run's folder is complete or absent: it is written elsewhere and moved into place
+//!   (one `rename`) once evaluated;
+//! - a sweep stopped at any moment and started again runs only what is missing;
+//! - a changed sweep file, world, plugin or vinebench binary gives new keys, so stale runs
+//!   are never mixed in (they stay on disk, unused).
+//!
+//! Layout of a sweep folder:
+//! - `worlds/<key>.toml`: the resolved simulator configuration of each point of the axes;
+//! - `runs/<key>/`: one finished run (the files of a bench's run folder, and `cell.json`);
+//! - `.work/`: runs in progress, removed when their process is gone;
+//! - `sweep.json`, `sweep.csv`, `speed.csv`, `sweep.md`, `plots/`: the aggregate
+//!   ([`aggregate`]);
+//! - `slurm/`: the job arrays submitted ([`slurm`]).
+
+pub mod aggregate;
+pub mod slurm;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::Context as _;
+use serde::{Deserialize, Serialize};
+use sha2::Digest as _;
+
+use crate::bench_config::BenchConfig;
+use crate::report::{RunRecord, RunStatus};
+use crate::runner::{Plan, PlannedRun};
+
+/// Marks a folder as a sweep folder, so a sweep may resume in it.
+const MARKER: &str = ".vinebench-sweep";
+
+/// One axis: a world key by its dotted path and the values it takes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    pub path: String,
+    pub values: Vec<toml::Value>,
+}
+
+/// One run of the sweep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Cell {
+    /// Hash of the resolved configuration: the run's folder name under `runs/`.
+    pub key: String,
+    pub scenario: String,
+    /// The system's label (`[[plugins]] label`).
+    pub label: String,
+    pub plugin: PathBuf,
+    pub params_toml: String,
+    pub seed: u64,
+    /// The value of every axis (as TOML), in axis order.
+    pub point: Vec<(String, String)>,
+    /// The resolved world: `worlds/<world>.toml`.
+    pub world: String,
+}
+
+impl Cell {
+    /// `seed=1 vineyard.growth_stage=2`, for progress lines.
+    pub fn describe(&self) -> String {
+        let mut s = format!("{} {} seed={}", self.scenario, self.label, self.seed);
+        for (path, value) in &self.point {
+            s += &format!(" {path}={value}");
+        }
+        s
+    }
+}
+
+/// What `cell.json` in a run folder holds: the cell and how its run ended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Filed {
+    #[serde(flatten)]
+    pub cell: Cell,
+    /// `"ok"` or `"failed: <reason>"`.
+    pub status: String,
+}
+
+/// A sweep file, expanded.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    pub file: PathBuf,
+    pub cfg: BenchConfig,
+    pub axes: Vec<Axis>,
+    /// Resolved worlds by key: their TOML text.
+    pub worlds: BTreeMap<String, String>,
+    /// Every cell, in a stable order: scenario, plugin, axis values, seed.
+    pub cells: Vec<Cell>,
+    /// The seeds, in file order.
+    pub seeds: Vec<u64>,
+    /// Hash of the `vinebench` executable that expanded the sweep (part of every key).
+    pub exe_hash: String,
+}
+
+/// Hex SHA-256 of some bytes, first 16 digits (64 bits: no collision in any sweep).
+fn short_hash(bytes: &[u8]) -> String {
+    let digest = sha2::Sha256::digest(bytes);
+    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Hash of the running `vinebench` executable.
+pub fn exe_hash() -> anyhow::Result<String> {
+    let exe = std::env::current_exe().context("the vinebench executable")?;
+    file_hash(&exe)
+}
+
+fn file_hash(path: &Path) -> anyhow::Result<String> {
+    let bytes = std::fs::read(path).with_context(|| path.display().to_string())?;
+    Ok(short_hash(&bytes))
+}
+
+/// Sets `path` (dotted) in `table` to `value`, creating tables on the way; refuses to
+/// replace a table by a value or to step through a value.
+fn set_dotted(table: &mut toml::Table, path: &str, value: toml::Value) -> Result<(), String> {
+    let parts: Vec<&str> = path.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err("an empty key in the dotted path".into());
+    }
+    let (leaf, tables) = parts.split_last().expect("split gives one part at least");
+    let mut at = table;
+    for part in tables {
+        let next = at
+            .entry((*part).to_owned())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        at = match next {
+            toml::Value::Table(t) => t,
+            _ => return Err(format!("'{part}' is a value, not a table")),
+        };
+    }
+    if matches!(at.get(*leaf), Some(toml::Value::Table(_))) {
+        return Err(format!("'{leaf}' is a table; give one of its keys"));
+    }
+    at.insert((*leaf).to_owned(), value);
+    Ok(())
+}
+
+/// The cartesian product of the axes' values, the last axis varying fastest.
+fn points(axes: &[Axis]) -> Vec<Vec<toml::Value>> {
+    let mut out = vec![Vec::new()];
+    for axis in axes {
+        out = out
+            .into_iter()
+            .flat_map(|p| {
+                axis.values.iter().map(move |v| {
+                    let mut q = p.clone();
+                    q.push(v.clone());
+                    q
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+/// A value as TOML, for labels and CSV columns: `2`, `0.5`, `"dense"`.
+pub fn value_text(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => format!("{s:?}"),
+        other => other.to_string(),
+    }
+}
+
+impl Sweep {
+    /// Reads and expands a sweep file; `max_time_s` (`--max-time`) overrides the file's.
+    pub fn load(file: &Path, max_time_s: Option<f64>) -> anyhow::Result<Self> {
+        let mut cfg = BenchConfig::from_file(file)?;
+        if max_time_s.is_some() {
+            cfg.max_time_s = max_time_s;
+        }
+        let name = file.display().to_string();
+        let mut axes = Vec::new();
+        for (path, values) in &cfg.axes {
+            let values = match values {
+                toml::Value::Array(a) if !a.is_empty() => a.clone(),
+                _ => anyhow::bail!("{name}: axes.\"{path}\": give a non-empty list of values"),
+            };
+            if let Some(v) = values
+                .iter()
+                .find(|v| matches!(v, toml::Value::Table(_) | toml::Value::Array(_)))
+            {
+                anyhow::bail!("{name}: axes.\"{path}\": {v} is not a single value");
+            }
+            let distinct: BTreeSet<String> = values.iter().map(value_text).collect();
+            anyhow::ensure!(
+                distinct.len() == values.len(),
+                "{name}: axes.\"{path}\": a value is given twice"
+            );
+            axes.push(Axis {
+                path: path.clone(),
+                values,
+            });
+        }
+        let seeds = cfg
+            .seeds
+            .clone()
+            .unwrap_or_else(|| vec![cfg.seed.unwrap_or(0)]);
+        anyhow::ensure!(
+            seeds.iter().collect::<BTreeSet<_>>().len() == seeds.len(),
+            "{name}: seeds: a seed is given twice"
+        );
+
+        let base_text = match &cfg.world {
+            Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
+            None => sim::DEFAULT_CONFIG_TOML.to_owned(),
+        };
+        let base: toml::Table = base_text
+            .parse()
+            .map_err(|e: toml::de::Error| anyhow::anyhow!("{name}: world: {}", e.message()))?;
+        let exe_hash = exe_hash()?;
+        let plugins = cfg.resolve_plugins(file)?;
+        let plugin_hashes = plugins
+            .iter()
+            .map(|p| file_hash(&p.library))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+
+        let mut worlds = BTreeMap::new();
+        let mut point_worlds = Vec::new();
+        for point in points(&axes) {
+            let mut table = base.clone();
+            for (axis, value) in axes.iter().zip(&point) {
+                set_dotted(&mut table, &axis.path, value.clone())
+                    .map_err(|why| anyhow::anyhow!("{name}: axes.\"{}\": {why}", axis.path))?;
+            }
+            let text = toml::to_string(&table)?;
+            let origin = format!(
+                "{name} at {}",
+                axes.iter()
+                    .zip(&point)
+                    .map(|(a, v)| format!("{} = {}", a.path, value_text(v)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            let world = sim::SimConfig::from_toml_str(&text, &origin)?;
+            for s in &cfg.scenarios {
+                anyhow::ensure!(
+                    world.scenarios.contains_key(s),
+                    "{name}: unknown scenario '{s}' (known: {})",
+                    world
+                        .scenarios
+                        .keys()
+                        .cloned()
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+            let key = short_hash(text.as_bytes());
+            worlds.insert(key.clone(), text);
+            point_worlds.push((point, key));
+        }
+
+        let max_time = cfg
+            .max_time_s
+            .map_or_else(|| "whole route".to_owned(), |s| format!("{s:?}"));
+        let mut cells = Vec::new();
+        for scenario in &cfg.scenarios {
+            for (plugin, plugin_hash) in plugins.iter().zip(&plugin_hashes) {
+                for (point, world) in &point_worlds {
+                    for &seed in &seeds {
+                        // Everything that decides what the run does; not the label, which
+                        // only names it.
+                        let resolved = format!(
+                            "vinebench {exe_hash}\nscenario {scenario:?}\nseed {seed}\n\
+                             plugin {plugin_hash}\nparams {:?}\nworld {world}\n\
+                             max_time {max_time}\nalign {:?}\ntimeout {:?}\nmemory {}\n",
+                            plugin.params_toml, cfg.align, cfg.timeout_s, cfg.memory_limit_mb
+                        );
+                        cells.push(Cell {
+                            key: short_hash(resolved.as_bytes()),
+                            scenario: scenario.clone(),
+                            label: plugin.label.clone(),
+                            plugin: plugin.library.clone(),
+                            params_toml: plugin.params_toml.clone(),
+                            seed,
+                            point: axes
+                                .iter()
+                                .zip(point)
+                                .map(|(a, v)| (a.path.clone(), value_text(v)))
+                                .collect(),
+                            world: world.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        Ok(Self {
+            file: file.to_owned(),
+            cfg,
+            axes,
+            worlds,
+            cells,
+            seeds,
+            exe_hash,
+        })
+    }
+
+    /// Prepares the sweep folder: checks it is one (or empty), writes the resolved worlds
+    /// and removes the leftovers of runs whose process is gone.
+    pub fn prepare(&self, out: &Path) -> anyhow::Result<()> {
+        if out.exists() && !out.join(MARKER).exists() && std::fs::read_dir(out)?.next().is_some() {
+            anyhow::bail!(
+                "{} exists and is not a vinebench sweep folder; choose another --out",
+                out.display()
+            );
+        }
+        for dir in ["worlds", "runs", ".work"] {
+            std::fs::create_dir_all(out.join(dir))
+                .with_context(|| out.join(dir).display().to_string())?;
+        }
+        std::fs::File::create(out.join(MARKER))
+            .with_context(|| out.join(MARKER).display().to_string())?;
+        for (key, text) in &self.worlds {
+            let path = out.join("worlds").join(format!("{key}.toml"));
+            if !path.exists() {
+                write_atomic(&path, text.as_bytes())?;
+            }
+        }
+        remove_orphans(&out.join(".work"))
+    }
+
+    /// The cells whose run is not in `runs/` yet, each key once.
+    pub fn missing(&self, out: &Path) -> Vec<&Cell> {
+        let mut seen = BTreeSet::new();
+        self.cells
+            .iter()
+            .filter(|c| seen.insert(c.key.as_str()))
+            .filter(|c| !run_dir(out, &c.key).exists())
+            .collect()
+    }
+
+    /// One plan per (world, seed) for the given cells, in order of first appearance, so
+    /// that the runs of a scenario may share its simulation.
+    pub fn plans(&self, out: &Path, cells: &[&Cell], jobs: usize) -> Vec<(Plan, Vec<Cell>)> {
+        let mut groups: Vec<((String, u64), Vec<Cell>)> = Vec::new();
+        for c in cells {
+            let k = (c.world.clone(), c.seed);
+            match groups.iter_mut().find(|(g, _)| *g == k) {
+                Some((_, v)) => v.push((*c).clone()),
+                None => groups.push((k, vec![(*c).clone()])),
+            }
+        }
+        groups
+            .into_iter()
+            .map(|((world, seed), cells)| {
+                let mut scenarios: Vec<String> = Vec::new();
+                let mut labels: Vec<String> = Vec::new();
+                for c in &cells {
+                    if !scenarios.contains(&c.scenario) {
+                        scenarios.push(c.scenario.clone());
+                    }
+                    if !labels.contains(&c.label) {
+                        labels.push(c.label.clone());
+                    }
+                }
+                let plan = Plan {
+                    out: out.to_owned(),
+                    world: Some(out.join("worlds").join(format!("{world}.toml"))),
+                    seed,
+                    scenarios,
+                    labels,
+                    runs: cells
+                        .iter()
+                        .map(|c| PlannedRun {
+                            scenario: c.scenario.clone(),
+                            label: c.label.clone(),
+                            plugin: c.plugin.clone(),
+                            params_toml: c.params_toml.clone(),
+                        })
+                        .collect(),
+                    jobs,
+                    timeout: Duration::from_secs_f64(self.cfg.timeout_s),
+                    memory_limit_mb: self.cfg.memory_limit_mb,
+                    alignment: self.cfg.align.into(),
+                    dataset: None,
+                    max_time_s: self.cfg.max_time_s,
+                    share_simulation: self.cfg.share_simulation,
+                    bars: false,
+                };
+                (plan, cells)
+            })
+            .collect()
+    }
+}
+
+/// Where a cell's finished run lives.
+pub fn run_dir(out: &Path, key: &str) -> PathBuf {
+    out.join("runs").join(key)
+}
+
+/// Writes a file under a temporary name and renames it into place.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp-{}",
+        path.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        std::process::id()
+    ));
+    let mut f = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
+    f.write_all(bytes)
+        .and_then(|()| f.sync_all())
+        .with_context(|| tmp.display().to_string())?;
+    std::fs::rename(&tmp, path).with_context(|| path.display().to_string())
+}
+
+/// Work folders are named `<host>-<pid>-...`; those of this host whose process is gone
+/// are leftovers of a sweep that was stopped.
+fn remove_orphans(work: &Path) -> anyhow::Result<()> {
+    let host = hostname();
+    for entry in std::fs::read_dir(work).with_context(|| work.display().to_string())? {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(&format!("{host}-")) else {
+            continue;
+        };
+        let pid = rest.split('-').next().unwrap_or("");
+        let alive = !pid.is_empty() && Path::new("/proc").join(pid).exists();
+        if !alive {
+            std::fs::remove_dir_all(entry.path())
+                .with_context(|| entry.path().display().to_string())?;
+        }
+    }
+    Ok(())
+}
+
+/// This machine's name (Slurm tasks share the folder across machines).
+fn hostname() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_owned())
+        .ok()
+        .filter(|h| !h.is_empty() && !h.contains('/'))
+        .unwrap_or_else(|| "localhost".into())
+}
+
+/// A fresh work folder for this process: `.work/<host>-<pid>-<tag>`.
+pub fn work_dir(out: &Path, tag: &str) -> PathBuf {
+    out.join(".work")
+        .join(format!("{}-{}-{tag}", hostname(), std::process::id()))
+}
+
+/// Files a finished run: writes its `cell.json` and moves its folder to `runs/<key>`.
+/// Another process that filed the same cell first wins; this copy is dropped.
+pub fn file_run(out: &Path, cell: &Cell, record: &RunRecord, dir: &Path) -> anyhow::Result<()> {
+    let status = match &record.status {
+        RunStatus::Ok => "ok".to_owned(),
+        RunStatus::Failed(why) => format!("failed: {why}"),
+    };
+    let filed = Filed {
+        cell: cell.clone(),
+        status,
+    };
+    let json = serde_json::to_string_pretty(&filed)? + "\n";
+    std::fs::write(dir.join("cell.json"), json)
+        .with_context(|| dir.join("cell.json").display().to_string())?;
+    let target = run_dir(out, &cell.key);
+    if target.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| dir.display().to_string())?;
+        return Ok(());
+    }
+    std::fs::rename(dir, &target).with_context(|| target.display().to_string())
+}
+
+/// Reads a filed run's `cell.json`.
+pub fn read_filed(dir: &Path) -> anyhow::Result<Filed> {
+    let path = dir.join("cell.json");
+    let text = std::fs::read_to_string(&path).with_context(|| path.display().to_string())?;
+    serde_json::from_str(&text).with_context(|| path.display().to_string())
+}
+
+/// Runs `cells` here, `jobs` at once, filing each run as it ends; `on_filed` is called after
+/// each (for progress).
+pub fn run_local(
+    sweep: &Sweep,
+    out: &Path,
+    cells: &[&Cell],
+    jobs: usize,
+    on_filed: &(dyn Fn(&Cell, &RunRecord) + Sync),
+) -> anyhow::Result<()> {
+    let failures = std::sync::Mutex::new(Vec::new());
+    for (n, (plan, group)) in sweep.plans(out, cells, jobs).into_iter().enumerate() {
+        let work = work_dir(out, &n.to_string());
+        let filed = |i: usize, record: &RunRecord, dir: &Path| {
+            let cell = &group[i];
+            match file_run(out, cell, record, dir) {
+                Ok(()) => on_filed(cell, record),
+                Err(e) => failures
+                    .lock()
+                    .expect("no panics while holding the lock")
+                    .push(format!("{e:#}")),
+            }
+        };
+        crate::runner::execute_each(&plan, &work, &filed)?;
+        std::fs::remove_dir_all(&work).with_context(|| work.display().to_string())?;
+        let failures = failures.lock().expect("no panics while holding the lock");
+        if let Some(first) = failures.first() {
+            anyhow::bail!("filing a run: {first}");
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dotted_paths_set_nested_keys_and_refuse_tables() {
+        let mut t: toml::Table = "[vineyard]\nrows = 9\n".parse().expect("toml");
+        set_dotted(&mut t, "vineyard.growth_stage", toml::Value::Integer(2)).expect("set");
+        set_dotted(&mut t, "terrain.amplitude_m", toml::Value::Float(0.3)).expect("new table");
+        assert_eq!(t["vineyard"]["growth_stage"].as_integer(), Some(2));
+        assert_eq!(t["vineyard"]["rows"].as_integer(), Some(9));
+        assert_eq!(t["terrain"]["amplitude_m"].as_float(), Some(0.3));
+        assert!(set_dotted(&mut t, "vineyard", toml::Value::Integer(1)).is_err());
+        assert!(set_dotted(&mut t, "vineyard.rows.x", toml::Value::Integer(1)).is_err());
+        assert!(set_dotted(&mut t, "vineyard..rows", toml::Value::Integer(1)).is_err());
+    }
+
+    #[test]
+    fn points_cross_every_axis_last_fastest() {
+        let axes = vec![
+            Axis {
+                path: "a".into(),
+                values: vec![1.into(), 2.into()],
+            },
+            Axis {
+                path: "b".into(),
+                values: vec!["x".into(), "y".into(), "z".into()],
+            },
+        ];
+        let p: Vec<String> = points(&axes)
+            .iter()
+            .map(|p| p.iter().map(value_text).collect::<Vec<_>>().join(","))
+            .collect();
+        assert_eq!(
+            p,
+            [
+                "1,\"x\"", "1,\"y\"", "1,\"z\"", "2,\"x\"", "2,\"y\"", "2,\"z\""
+            ]
+        );
+        assert_eq!(points(&[]), vec![Vec::<toml::Value>::new()]);
+    }
+}
