@@ -8,7 +8,7 @@ need_pkg() { dpkg -s "$1" >/dev/null 2>&1 || apt_missing+=("$1"); }
 # A C toolchain for crates that build C (present on most Rust images).
 command -v cc >/dev/null 2>&1 || need_pkg gcc
 command -v python3 >/dev/null 2>&1 || { need_pkg python3; need_pkg python3-pip; need_pkg python3-venv; }
-# OpenCV for sim/tests/camera_features.rs: the opencv crate binds the system's library
+# OpenCV for sim/tests/all/camera_features.rs: the opencv crate binds the system's library
 # (found with pkg-config) and generates its bindings with libclang.
 need_pkg libopencv-dev
 need_pkg clang

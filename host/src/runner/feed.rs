@@ -5,7 +5,7 @@
 //! The same messages as the worker's own simulation would give, bit for bit: every sensor
 //! draws its noise from its own seeded stream (`sim::rng::stream(seed, sensor)`), so which
 //! other sensors run beside it changes nothing, and the wire format below carries every
-//! value's exact bits. `host/tests/feed.rs` checks that shared and unshared runs give the
+//! value's exact bits. `host/tests/e2e/bench.rs` checks that shared and unshared runs give the
 //! same estimates.
 //!
 //! Wire format (all little-endian): frames of `tag: u8`, `length: u64`, `payload`; the tag

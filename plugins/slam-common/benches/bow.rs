@@ -3,7 +3,7 @@
 //! every indexed one.
 //!
 //! The vocabularies come from the simulated route of `tests/support/bow_route.rs`, as in
-//! `tests/bow.rs`: every location sees 500 landmarks, 250 of them seen by the previous
+//! `tests/all/bow.rs`: every location sees 500 landmarks, 250 of them seen by the previous
 //! location too. Added locations are of three kinds: the next location of the route (250
 //! re-observed, 250 new landmarks), a revisit of an old location (500 re-observed: a loop
 //! closure), and a location of landmarks never seen (500 new words, the index's worst

@@ -15,7 +15,7 @@
 //! broken by the smaller triangle index, so results never depend on traversal order. The BVH,
 //! parry3d and brute force share our triangle test; Embree rounds its own way, so its `t` can
 //! differ in the last bits and, where two triangles are hit within that rounding (a shared
-//! edge), it can name the other one (see `embree.rs`; sim/tests/embree.rs counts how often).
+//! edge), it can name the other one (see `embree.rs`; sim/tests/all/embree.rs counts how often).
 
 mod aabb;
 mod brute;

@@ -2,7 +2,7 @@
 //! [`Robust`]) and factrs's, and the checks that keep bad input from reaching factrs
 //! (which panics on it).
 //!
-//! factrs's conventions, checked by the tests in `tests/backend.rs`:
+//! factrs's conventions, checked by the tests in `tests/all/backend.rs`:
 //! - `SE3` is `world_from_body` stored as (unit quaternion, translation); `compose` is the
 //!   usual product, so `SE3::from_rot_trans(R, t)` is `Isometry3::from_parts(t, R)`.
 //! - Tangent vectors put rotation first, then translation, and perturbations act on the

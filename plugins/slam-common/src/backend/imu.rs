@@ -5,7 +5,7 @@
 //! first-order Jacobians that correct it for a change of bias.
 //!
 //! factrs's conventions, and how [`ImuNoise`] (continuous time, Kalibr's units) is mapped
-//! onto them (checked by the IMU tests in `tests/backend.rs`):
+//! onto them (checked by the IMU tests in `tests/all/backend.rs`):
 //! - Its `Gravity` is the gravity *acceleration* in the world frame (`v̇ = g + R·(a − bₐ)`
 //!   with `a` the specific force an accelerometer reads, +9.8 m/s² upwards at rest), so a
 //!   z-up world uses `Gravity(0, 0, −g)` — what factrs calls `Gravity::down()`, not the

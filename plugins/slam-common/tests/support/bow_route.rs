@@ -1,4 +1,4 @@
-//! A simulated vineyard route of binary descriptors, for `tests/bow.rs` and `benches/bow.rs`
+//! A simulated vineyard route of binary descriptors, for `tests/all/bow.rs` and `benches/bow.rs`
 //! (both include this file with `#[path]`, so it is built into neither the library nor any
 //! test binary of its own).
 //!

@@ -3,9 +3,7 @@
 //! loaded from its `.so` by the `vinebench` binary — with its map and grid checked against
 //! the world.
 
-mod common;
-
-use common::{ate, event_positions, json, loop_events, run};
+use crate::common::{ate, event_positions, json, loop_events, run, run_together};
 use nalgebra::{Isometry2, Isometry3, Point2, Vector2};
 use rtabmap::config::{FeatureConfig, ScanOdometryConfig, VisualOdometryConfig};
 use rtabmap::features::{Image, extract};
@@ -335,20 +333,21 @@ fn plugin_runs_s0_and_its_grid_lies_on_the_rows() {
 #[test]
 fn true_loops_are_closed_in_s1() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let with = run(
+    // One rendering of S1 feeds both runs.
+    let folders = run_together(
         dir.path(),
         "s1",
         "rtabmap",
-        "with-loops",
-        "locations_csv = \"locations.csv\"\n",
+        &[
+            ("with-loops", "locations_csv = \"locations.csv\"\n"),
+            (
+                "without-loops",
+                "[proximity]\nenabled = false\n[loop_closure]\nenabled = false\n",
+            ),
+        ],
+        &[],
     );
-    let without = run(
-        dir.path(),
-        "s1",
-        "rtabmap",
-        "without-loops",
-        "[proximity]\nenabled = false\n[loop_closure]\nenabled = false\n",
-    );
+    let (with, without) = (folders[0].clone(), folders[1].clone());
     let accepted = loop_events(&with, "loop_closure_accepted");
     assert!(
         accepted.len() >= 5,

@@ -63,6 +63,67 @@ pub fn run_with(
     out.join(scenario).join(plugin)
 }
 
+/// Runs `plugin` on `scenario` once per `(label, params)` as one bench of that many jobs, so
+/// that the runs are fed by one simulation (one camera rendering for all of them) instead of
+/// one each; returns their folders in order. The data are the same either way
+/// (`bench.rs`: `a_shared_simulation_gives_every_run_its_own_data`).
+pub fn run_together(
+    dir: &Path,
+    scenario: &str,
+    plugin: &str,
+    runs: &[(&str, &str)],
+    extra: &[&str],
+) -> Vec<PathBuf> {
+    let mut bench = toml::Table::new();
+    bench.insert(
+        "scenarios".into(),
+        toml::Value::Array(vec![scenario.into()]),
+    );
+    bench.insert("jobs".into(), (runs.len() as i64).into());
+    let entries = runs
+        .iter()
+        .map(|(label, params)| {
+            let params: toml::Table = params
+                .parse()
+                .unwrap_or_else(|e| panic!("params of {label}: {e}"));
+            let mut entry = toml::Table::new();
+            entry.insert("name".into(), plugin.into());
+            entry.insert("label".into(), (*label).into());
+            entry.insert("params".into(), toml::Value::Table(params));
+            toml::Value::Table(entry)
+        })
+        .collect();
+    bench.insert("plugins".into(), toml::Value::Array(entries));
+    let file = dir.join(format!("{plugin}-together.toml"));
+    std::fs::write(&file, toml::to_string(&bench).expect("toml")).expect("write bench file");
+    let out = dir.join(format!("{plugin}-together"));
+    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .arg("bench")
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .args(extra)
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .output()
+        .expect("vinebench runs");
+    assert!(
+        o.status.success(),
+        "bench of {plugin} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    runs.iter()
+        .map(|(label, _)| {
+            let folder = out.join(scenario).join(label);
+            let timing = json(&folder.join("timing.json"));
+            assert_eq!(
+                timing["source"], "shared simulation",
+                "{label} was fed by the shared simulation"
+            );
+            folder
+        })
+        .collect()
+}
+
 /// ATE of a TUM trajectory against ground truth (SE(3) alignment), from `vinebench eval`.
 pub fn ate(folder: &Path, file: &str) -> f64 {
     let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))

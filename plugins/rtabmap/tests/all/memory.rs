@@ -7,10 +7,7 @@
 //! scan gives, on a simulated vineyard route (slam-common's `tests/support/bow_route.rs`)
 //! after memory management has removed locations and left free slots in the index.
 
-#[path = "../../slam-common/tests/support/bow_route.rs"]
-mod bow_route;
-
-use bow_route::{Route, flip, observe};
+use crate::bow_route::{Route, flip, observe};
 use nalgebra::Isometry3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

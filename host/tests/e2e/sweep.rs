@@ -3,13 +3,11 @@
 //! the missing runs and aggregates byte-identically to an uninterrupted one; on a Slurm
 //! cluster (a local one in the test command) it aggregates as here.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{deps_dir, json};
+use crate::common::{deps_dir, json};
 
 fn vinebench(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_vinebench"))

@@ -1,7 +1,6 @@
 //! The StaticMapping-style plugin on the simulator's own data: its point-to-plane ICP on
 //! real sweeps against ground truth, and the plugin as the host runs it.
 
-mod common;
 // M2DP on S3's sweeps: same place, the lane beside, elsewhere.
 mod m2dp;
 
@@ -113,7 +112,7 @@ const S3_LOOP_TEST_S: f64 = 80.0;
 fn loops_are_verified_and_added_in_s3() {
     let dir = tempfile::tempdir().expect("temp dir");
     let max_time = S3_LOOP_TEST_S.to_string();
-    let run = common::run_with(
+    let run = crate::common::run_with(
         dir.path(),
         "s3",
         "staticmapping",
@@ -121,17 +120,17 @@ fn loops_are_verified_and_added_in_s3() {
         "timing_json = \"build-timing.json\"\n[input]\nmin_range_m = 1.0\n",
         &["--max-time", &max_time],
     );
-    let accepted = common::loop_events(&run, "loop_closure_accepted");
-    let report = common::json(&run.join("build-timing.json"));
+    let accepted = crate::common::loop_events(&run, "loop_closure_accepted");
+    let report = crate::common::json(&run.join("build-timing.json"));
     eprintln!(
         "staticmapping s3 to {S3_LOOP_TEST_S} s: ATE {:.3} m, {} loop edges accepted; build {report}",
-        common::ate(&run, "estimate.tum"),
+        crate::common::ate(&run, "estimate.tum"),
         accepted.len()
     );
     assert!(
         !accepted.is_empty(),
         "no loop closure accepted in S3: {}",
-        common::json(&run.join("events.json"))
+        crate::common::json(&run.join("events.json"))
     );
     for event in &accepted {
         let error = event.relative_error_m.unwrap_or(f64::INFINITY);
@@ -140,7 +139,7 @@ fn loops_are_verified_and_added_in_s3() {
             "every accepted loop carries its stamps and a relative pose true to ground truth: {event:?}"
         );
     }
-    let loops = &common::json(&run.join("metrics.json"))["loops"];
+    let loops = &crate::common::json(&run.join("metrics.json"))["loops"];
     assert_eq!(
         loops["accepted"].as_u64(),
         Some(accepted.len() as u64),
@@ -152,6 +151,6 @@ fn loops_are_verified_and_added_in_s3() {
         Some(accepted.len() as u64),
         "one event per edge added to the graph: {report}"
     );
-    let ate = common::ate(&run, "estimate.tum");
+    let ate = crate::common::ate(&run, "estimate.tum");
     assert!(ate.is_finite() && ate < 1.0, "ATE {ate:.3} m");
 }

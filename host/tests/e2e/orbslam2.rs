@@ -1,9 +1,7 @@
 //! The ORB-SLAM2-style plugin as the host runs it — loaded from its `.so` by the `vinebench`
 //! binary on the simulator's rendered frames — and its vocabulary on rendered frames.
 
-mod common;
-
-use common::{ate, json, run};
+use crate::common::{ate, json, run_together};
 
 /// s4 drives lane 3 twice in the same direction: the second pass sees the first one's
 /// views again. Loop closing must accept at least one loop there that ground truth calls
@@ -11,20 +9,24 @@ use common::{ate, json, run};
 #[test]
 fn a_true_loop_in_s4_is_accepted_and_lowers_the_error() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let with = run(dir.path(), "s4", "orbslam2", "loops", "");
-    let without = run(
+    // One rendering of S4 feeds both runs.
+    let folders = run_together(
         dir.path(),
         "s4",
         "orbslam2",
-        "no-loops",
-        "[loop_closing]\nenabled = false\n",
+        &[
+            ("loops", ""),
+            ("no-loops", "[loop_closing]\nenabled = false\n"),
+        ],
+        &[],
     );
+    let (with, without) = (&folders[0], &folders[1]);
     let loops = &json(&with.join("metrics.json"))["loops"];
     let accepted = loops["accepted"].as_u64().expect("loops.accepted");
     let false_loops = loops["accepted_false"]
         .as_u64()
         .expect("loops.accepted_false");
-    let (ate_with, ate_without) = (ate(&with, "estimate.tum"), ate(&without, "estimate.tum"));
+    let (ate_with, ate_without) = (ate(with, "estimate.tum"), ate(without, "estimate.tum"));
     eprintln!(
         "orbslam2 s4: {accepted} loops accepted ({false_loops} false), ATE {ate_with:.3} m with loop closing, {ate_without:.3} m without"
     );
@@ -50,7 +52,7 @@ fn neighbour_wins(plant_variation: f64) -> (usize, usize) {
     use slam_common::vocabulary::Vocabulary;
 
     let vocabulary = Vocabulary::read_from(
-        &mut &include_bytes!("../../plugins/orbslam2/vocabulary/vineyard-k10l6.dbow")[..],
+        &mut &include_bytes!("../../../plugins/orbslam2/vocabulary/vineyard-k10l6.dbow")[..],
     )
     .expect("the shipped vocabulary reads");
     let mut config = SimConfig::default();

@@ -6,8 +6,7 @@
 //! round trip, documented size, and errors (not panics) on corrupt or truncated files.
 
 #[allow(dead_code)]
-#[path = "support/bow_route.rs"]
-mod bow_route;
+use crate::bow_route;
 
 use std::time::Instant;
 

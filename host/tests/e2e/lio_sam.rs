@@ -2,9 +2,7 @@
 //! ground truth (deskewing a turning sweep, IMU preintegration), and the plugin as the host
 //! runs it — loaded from its `.so` by the `vinebench` binary — closing a loop in S1.
 
-mod common;
-
-use common::{ate, json, loop_events, run};
+use crate::common::{ate, json, loop_events, run};
 
 use lio_sam::config::{FeatureConfig, MappingConfig};
 use lio_sam::deskew::{SweepLayout, rings};

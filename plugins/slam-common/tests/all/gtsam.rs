@@ -402,8 +402,8 @@ fn header_value(text: &str, name: &str) -> f64 {
 
 #[test]
 fn gtsam_pose3example_reaches_gtsams_batch_optimum() {
-    let g2o = include_str!("fixtures/pose3example.txt");
-    let fixture = include_str!("fixtures/pose3example.gtsam.txt");
+    let g2o = include_str!("../fixtures/pose3example.txt");
+    let fixture = include_str!("../fixtures/pose3example.gtsam.txt");
     let optimum: Vec<Isometry3<f64>> = fixture
         .lines()
         .filter(|l| !l.starts_with('#'))

@@ -4,8 +4,7 @@
 //! linear scan on a simulated vineyard route (`support/bow_route.rs`) whose locations each
 //! see 300 landmarks, half of them seen by the previous location too.
 
-#[path = "support/bow_route.rs"]
-mod bow_route;
+use crate::bow_route;
 
 use bow_route::{Route, flip, landmarks, observe};
 use rand::{Rng, SeedableRng};

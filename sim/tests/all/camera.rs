@@ -333,8 +333,8 @@ fn depth_noise_at_three_metres_matches_the_kinect_v2_model() {
     );
 }
 
-/// Regenerates docs/camera/*.png: `cargo test -p vinebench-sim --release --test camera --
-/// --ignored sample_frames`.
+/// Regenerates docs/camera/*.png: `cargo test -p vinebench-sim --release --test all --
+/// --ignored camera::sample_frames`.
 #[test]
 #[ignore = "writes docs/camera/*.png"]
 fn sample_frames() {

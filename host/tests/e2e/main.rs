@@ -1,0 +1,15 @@
+//! End-to-end tests of vinebench: real plugins loaded from their `.so` by the real
+//! `vinebench` binary on short simulated routes, with assertions on the numbers that come
+//! out, and the pieces they are built of on simulated data. One test binary (one link of
+//! every plugin) for all of them; a module per subject.
+
+mod common;
+
+mod bench;
+mod cli;
+mod dataset;
+mod lio_sam;
+mod orbslam2;
+mod rtabmap;
+mod staticmapping;
+mod sweep;

@@ -1,0 +1,6 @@
+//! The simulator's tests, one module per subject, in one test binary (one link).
+
+mod camera;
+mod camera_features;
+mod embree;
+mod sim;
