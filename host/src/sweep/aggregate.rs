@@ -208,91 +208,83 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-fn csv_head(agg: &Aggregate) -> Vec<String> {
+/// A row's counts and summaries, in a CSV's column order.
+type RowValues = (Vec<usize>, Vec<Option<Summary>>);
+
+/// A CSV of one line per row: scenario, system and axis values, then `counts` (integers),
+/// then mean, std, min and max of each of `summaries`; `values` gives a row's counts and
+/// summaries in that order.
+fn render_rows(
+    agg: &Aggregate,
+    counts: &[&str],
+    summaries: &[&str],
+    values: &dyn Fn(&Row) -> RowValues,
+) -> String {
+    let line = |fields: Vec<String>| {
+        fields
+            .iter()
+            .map(|f| csv_field(f))
+            .collect::<Vec<_>>()
+            .join(",")
+            + "\n"
+    };
     let mut head = vec!["scenario".to_owned(), "system".to_owned()];
     head.extend(agg.axes.iter().map(|(p, _)| p.clone()));
-    head
-}
-
-fn csv_key(row: &Row) -> Vec<String> {
-    let mut line = vec![row.scenario.clone(), row.system.clone()];
-    line.extend(row.axes.iter().map(|(_, v)| v.clone()));
-    line
-}
-
-fn summary_cols(s: Option<Summary>) -> [String; 4] {
-    [
-        fixed(s.map(|s| s.mean)),
-        fixed(s.and_then(|s| s.std)),
-        fixed(s.map(|s| s.min)),
-        fixed(s.map(|s| s.max)),
-    ]
+    head.extend(counts.iter().map(|c| (*c).to_owned()));
+    for m in summaries {
+        head.extend(["mean", "std", "min", "max"].map(|s| format!("{m}_{s}")));
+    }
+    let mut out = line(head);
+    for row in &agg.rows {
+        let mut fields = vec![row.scenario.clone(), row.system.clone()];
+        fields.extend(row.axes.iter().map(|(_, v)| v.clone()));
+        let (n, stats) = values(row);
+        fields.extend(n.iter().map(usize::to_string));
+        for s in stats {
+            fields.extend([
+                fixed(s.map(|s| s.mean)),
+                fixed(s.and_then(|s| s.std)),
+                fixed(s.map(|s| s.min)),
+                fixed(s.map(|s| s.max)),
+            ]);
+        }
+        out += &line(fields);
+    }
+    out
 }
 
 /// `sweep.csv`.
 pub fn render_csv(agg: &Aggregate) -> String {
-    let mut head = csv_head(agg);
-    head.extend(["n_ok", "n_failed", "n_missing"].map(str::to_owned));
-    for m in ["ate_rmse_m", "loops_accepted", "loops_false"] {
-        for s in ["mean", "std", "min", "max"] {
-            head.push(format!("{m}_{s}"));
-        }
-    }
-    let mut out = head
-        .iter()
-        .map(|h| csv_field(h))
-        .collect::<Vec<_>>()
-        .join(",")
-        + "\n";
-    for row in &agg.rows {
-        let mut line = csv_key(row);
-        line.extend([row.n_ok, row.n_failed, row.n_missing].map(|n| n.to_string()));
-        for s in [row.ate_rmse_m, row.loops_accepted, row.loops_false] {
-            line.extend(summary_cols(s));
-        }
-        out += &(line
-            .iter()
-            .map(|f| csv_field(f))
-            .collect::<Vec<_>>()
-            .join(",")
-            + "\n");
-    }
-    out
+    render_rows(
+        agg,
+        &["n_ok", "n_failed", "n_missing"],
+        &["ate_rmse_m", "loops_accepted", "loops_false"],
+        &|row| {
+            (
+                vec![row.n_ok, row.n_failed, row.n_missing],
+                vec![row.ate_rmse_m, row.loops_accepted, row.loops_false],
+            )
+        },
+    )
 }
 
 /// `speed.csv`.
 pub fn render_speed_csv(agg: &Aggregate) -> String {
-    let mut head = csv_head(agg);
-    head.push("n".to_owned());
-    for m in ["realtime_factor", "cpu_s", "peak_rss_mb"] {
-        for s in ["mean", "std", "min", "max"] {
-            head.push(format!("{m}_{s}"));
-        }
-    }
-    let mut out = head
-        .iter()
-        .map(|h| csv_field(h))
-        .collect::<Vec<_>>()
-        .join(",")
-        + "\n";
-    for row in &agg.rows {
-        let mut line = csv_key(row);
-        line.push(row.n_ok.to_string());
-        for s in [
-            row.speed.realtime_factor,
-            row.speed.cpu_s,
-            row.speed.peak_rss_mb,
-        ] {
-            line.extend(summary_cols(s));
-        }
-        out += &(line
-            .iter()
-            .map(|f| csv_field(f))
-            .collect::<Vec<_>>()
-            .join(",")
-            + "\n");
-    }
-    out
+    render_rows(
+        agg,
+        &["n"],
+        &["realtime_factor", "cpu_s", "peak_rss_mb"],
+        &|row| {
+            (
+                vec![row.n_ok],
+                vec![
+                    row.speed.realtime_factor,
+                    row.speed.cpu_s,
+                    row.speed.peak_rss_mb,
+                ],
+            )
+        },
+    )
 }
 
 fn pm(s: Option<Summary>, decimals: usize) -> String {

@@ -2,6 +2,7 @@
 //! and reading what it wrote. (Each test crate uses a part of it.)
 #![allow(dead_code)]
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -19,6 +20,22 @@ pub fn deps_dir() -> PathBuf {
 pub fn json(path: &Path) -> serde_json::Value {
     let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&t).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Runs the `vinebench` binary with the test build's plugins on its search path; panics
+/// with its stderr, naming `what`, if it fails.
+pub fn vinebench_ok(args: &[OsString], what: &str) -> std::process::Output {
+    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args(args)
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .output()
+        .expect("vinebench runs");
+    assert!(
+        o.status.success(),
+        "{what} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
 }
 
 /// Runs `plugin` through the host on a scenario with `params` as its configuration;
@@ -39,27 +56,19 @@ pub fn run_with(
     let config = dir.join(format!("{label}.toml"));
     std::fs::write(&config, params).expect("write plugin config");
     let out = dir.join(label);
-    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args([
-            "run",
-            "--scenario",
-            scenario,
-            "--plugin",
-            plugin,
-            "--plugin-config",
-        ])
-        .arg(&config)
-        .arg("--out")
-        .arg(&out)
-        .args(extra)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .output()
-        .expect("vinebench runs");
-    assert!(
-        o.status.success(),
-        "run {label} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let mut args: Vec<OsString> = [
+        "run",
+        "--scenario",
+        scenario,
+        "--plugin",
+        plugin,
+        "--plugin-config",
+    ]
+    .map(OsString::from)
+    .to_vec();
+    args.extend([config.into(), "--out".into(), out.clone().into()]);
+    args.extend(extra.iter().map(OsString::from));
+    vinebench_ok(&args, &format!("run {label}"));
     out.join(scenario).join(plugin)
 }
 
@@ -97,20 +106,14 @@ pub fn run_together(
     let file = dir.join(format!("{plugin}-together.toml"));
     std::fs::write(&file, toml::to_string(&bench).expect("toml")).expect("write bench file");
     let out = dir.join(format!("{plugin}-together"));
-    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .arg("bench")
-        .arg(&file)
-        .arg("--out")
-        .arg(&out)
-        .args(extra)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .output()
-        .expect("vinebench runs");
-    assert!(
-        o.status.success(),
-        "bench of {plugin} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let mut args: Vec<OsString> = vec![
+        "bench".into(),
+        file.into(),
+        "--out".into(),
+        out.clone().into(),
+    ];
+    args.extend(extra.iter().map(OsString::from));
+    vinebench_ok(&args, &format!("bench of {plugin}"));
     runs.iter()
         .map(|(label, _)| {
             let folder = out.join(scenario).join(label);
