@@ -86,6 +86,8 @@ pub struct Aggregate {
     /// Every axis with its values as TOML text.
     pub axes: Vec<(String, Vec<String>)>,
     pub rows: Vec<Row>,
+    /// Hashes of the `vinebench` builds that made the runs found, sorted.
+    pub builds: Vec<String>,
 }
 
 impl Aggregate {
@@ -136,6 +138,7 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
         }
     }
     let mut out_rows = Vec::with_capacity(rows.len());
+    let mut builds = std::collections::BTreeSet::new();
     for (mut row, cells) in rows {
         let (mut ate, mut accepted, mut false_, mut rtf, mut cpu, mut rss) =
             (vec![], vec![], vec![], vec![], vec![], vec![]);
@@ -146,6 +149,7 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
                 continue;
             }
             let filed = read_filed(&dir)?;
+            builds.insert(filed.build.clone());
             if let Some(why) = filed.status.strip_prefix("failed: ") {
                 row.n_failed += 1;
                 row.failures.push(format!("seed {}: {why}", cell.seed));
@@ -193,6 +197,7 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
             .map(|a| (a.path.clone(), a.values.iter().map(value_text).collect()))
             .collect(),
         rows: out_rows,
+        builds: builds.into_iter().collect(),
     })
 }
 
@@ -377,6 +382,15 @@ pub fn render_markdown(agg: &Aggregate) -> String {
     if !failed.is_empty() {
         let _ = writeln!(md, "## Failed runs\n\n{}\n", failed.join("\n"));
     }
+    if agg.builds.len() > 1 {
+        let _ = writeln!(
+            md,
+            "**The runs were made by {} builds of vinebench** ({}): a study should not mix \
+             them unless the simulator and the evaluation did not change between them.\n",
+            agg.builds.len(),
+            agg.builds.join(", ")
+        );
+    }
     let missing = agg.missing();
     if missing > 0 {
         let _ = writeln!(
@@ -460,7 +474,7 @@ pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> 
         .fold(0.0, f64::max);
     let step = tick_step(if top > 0.0 { top } else { 1.0 }, 5.0);
     let y_max = (top / step).ceil().max(1.0) * step;
-    let (w, h, left, right, top_m, bottom) = (760.0, 440.0, 70.0, 250.0, 40.0, 60.0);
+    let (w, h, left, right, top_m, bottom) = (820.0, 440.0, 70.0, 310.0, 40.0, 60.0);
     let pw = w - left - right;
     let ph = h - top_m - bottom;
     let n = values.len() as f64;
@@ -563,7 +577,11 @@ pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> 
         let lx = left + pw + 16.0;
         let mut name = agg.systems[*system].clone();
         if !others.is_empty() {
-            let o: Vec<String> = others.iter().map(|(p, v)| format!("{p}={v}")).collect();
+            // The key's last part: `plant_variation=1.0` for `vineyard.plant_variation`.
+            let o: Vec<String> = others
+                .iter()
+                .map(|(p, v)| format!("{}={v}", p.rsplit('.').next().unwrap_or(p)))
+                .collect();
             name += &format!(" ({})", o.join(", "));
         }
         let _ = writeln!(

@@ -5,8 +5,10 @@
 //! - a run's folder is complete or absent: it is written elsewhere and moved into place
 //!   (one `rename`) once evaluated;
 //! - a sweep stopped at any moment and started again runs only what is missing;
-//! - a changed sweep file, world, plugin or vinebench binary gives new keys, so stale runs
-//!   are never mixed in (they stay on disk, unused).
+//! - a changed sweep file, world or plugin gives new keys, so stale runs are never mixed in
+//!   (they stay on disk, unused). The `vinebench` build is not part of the key, so that a
+//!   rebuilt binary can still aggregate and resume a study; every run records the build
+//!   that made it, and the aggregate lists them all and says when there are several.
 //!
 //! Layout of a sweep folder:
 //! - `worlds/<key>.toml`: the resolved simulator configuration of each point of the axes;
@@ -77,6 +79,8 @@ pub struct Filed {
     pub cell: Cell,
     /// `"ok"` or `"failed: <reason>"`.
     pub status: String,
+    /// Hash of the `vinebench` executable that made the run.
+    pub build: String,
 }
 
 /// A sweep file, expanded.
@@ -91,7 +95,8 @@ pub struct Sweep {
     pub cells: Vec<Cell>,
     /// The seeds, in file order.
     pub seeds: Vec<u64>,
-    /// Hash of the `vinebench` executable that expanded the sweep (part of every key).
+    /// Hash of the `vinebench` executable that expanded the sweep: the build of the runs it
+    /// makes.
     pub exe_hash: String,
 }
 
@@ -262,7 +267,7 @@ impl Sweep {
                         // Everything that decides what the run does; not the label, which
                         // only names it.
                         let resolved = format!(
-                            "vinebench {exe_hash}\nscenario {scenario:?}\nseed {seed}\n\
+                            "vinebench-sweep-cell 1\nscenario {scenario:?}\nseed {seed}\n\
                              plugin {plugin_hash}\nparams {:?}\nworld {world}\n\
                              max_time {max_time}\nalign {:?}\ntimeout {:?}\nmemory {}\n",
                             plugin.params_toml, cfg.align, cfg.timeout_s, cfg.memory_limit_mb
@@ -441,7 +446,13 @@ pub fn work_dir(out: &Path, tag: &str) -> PathBuf {
 
 /// Files a finished run: writes its `cell.json` and moves its folder to `runs/<key>`.
 /// Another process that filed the same cell first wins; this copy is dropped.
-pub fn file_run(out: &Path, cell: &Cell, record: &RunRecord, dir: &Path) -> anyhow::Result<()> {
+pub fn file_run(
+    out: &Path,
+    cell: &Cell,
+    build: &str,
+    record: &RunRecord,
+    dir: &Path,
+) -> anyhow::Result<()> {
     let status = match &record.status {
         RunStatus::Ok => "ok".to_owned(),
         RunStatus::Failed(why) => format!("failed: {why}"),
@@ -449,6 +460,7 @@ pub fn file_run(out: &Path, cell: &Cell, record: &RunRecord, dir: &Path) -> anyh
     let filed = Filed {
         cell: cell.clone(),
         status,
+        build: build.to_owned(),
     };
     let json = serde_json::to_string_pretty(&filed)? + "\n";
     std::fs::write(dir.join("cell.json"), json)
@@ -482,7 +494,7 @@ pub fn run_local(
         let work = work_dir(out, &n.to_string());
         let filed = |i: usize, record: &RunRecord, dir: &Path| {
             let cell = &group[i];
-            match file_run(out, cell, record, dir) {
+            match file_run(out, cell, &sweep.exe_hash, record, dir) {
                 Ok(()) => on_filed(cell, record),
                 Err(e) => failures
                     .lock()

@@ -31,8 +31,8 @@ pub struct Tasks {
     pub memory_limit_mb: u64,
     pub align: crate::bench_config::Align,
     pub max_time_s: Option<f64>,
-    /// The submitting executable's hash: a task run by another build would file its run
-    /// under a key that does not describe it, so it refuses.
+    /// The submitting executable's hash: a task run by another build (the binary was
+    /// replaced after submission) refuses, so that one submission is one build.
     pub exe_hash: String,
     pub cells: Vec<Cell>,
 }
@@ -227,7 +227,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
     let filing = std::sync::Mutex::new(Ok(()));
     let records = crate::runner::execute_each(&plan, &work, &|_, record, dir| {
         *filing.lock().expect("no panics while holding the lock") =
-            file_run(out, cell, record, dir);
+            file_run(out, cell, &tasks.exe_hash, record, dir);
     })?;
     filing
         .into_inner()

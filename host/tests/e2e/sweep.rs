@@ -71,6 +71,12 @@ fn check_aggregate(out: &Path) {
     let agg = json(&out.join("sweep.json"));
     let rows = agg["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 4, "2 systems x 2 growth stages: {agg}");
+    assert_eq!(
+        agg["builds"].as_array().map(Vec::len),
+        Some(1),
+        "one vinebench build made every run: {}",
+        agg["builds"]
+    );
     let runs: Vec<(serde_json::Value, serde_json::Value)> = filed_runs(out)
         .iter()
         .map(|d| (json(&d.join("cell.json")), json(&d.join("metrics.json"))))
