@@ -6,19 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use crate::common::{deps_dir, json, quantile, relative_errors};
-
-fn vinebench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args(args)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .output()
-        .expect("vinebench runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use crate::common::{deps_dir, json, quantile, relative_errors, text, vinebench};
 
 fn plugin_lib(crate_name: &str) -> PathBuf {
     let path = deps_dir().join(format!(

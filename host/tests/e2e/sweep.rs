@@ -7,19 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{deps_dir, json};
-
-fn vinebench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args(args)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .output()
-        .expect("vinebench runs")
-}
-
-fn text(bytes: &[u8]) -> String {
-    String::from_utf8_lossy(bytes).into_owned()
-}
+use crate::common::{deps_dir, json, text, vinebench};
 
 const SWEEP: &str = r#"
 scenarios = ["s1"]

@@ -22,20 +22,25 @@ pub fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&t).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// Runs the `vinebench` binary with the test build's plugins on its search path; panics
-/// with its stderr, naming `what`, if it fails.
-pub fn vinebench_ok(args: &[OsString], what: &str) -> std::process::Output {
-    let o = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+/// Runs the `vinebench` binary with the test build's plugins on its search path.
+pub fn vinebench<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_vinebench"))
         .args(args)
         .env("VINEBENCH_PLUGIN_PATH", deps_dir())
         .output()
-        .expect("vinebench runs");
-    assert!(
-        o.status.success(),
-        "{what} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+        .expect("vinebench runs")
+}
+
+/// [`vinebench`], panicking with its stderr, naming `what`, if it fails.
+pub fn vinebench_ok(args: &[OsString], what: &str) -> std::process::Output {
+    let o = vinebench(args);
+    assert!(o.status.success(), "{what} failed: {}", text(&o.stderr));
     o
+}
+
+/// Bytes of an output stream as text.
+pub fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
 }
 
 /// Runs `plugin` through the host on a scenario with `params` as its configuration;
