@@ -31,21 +31,21 @@ pub(crate) const DISTORTION_MODEL: &str = "plumb_bob";
 pub(crate) const DISTORTION: [f64; 5] = [0.0; 5];
 
 /// `std_msgs/Header` with the stamp offset by [`EPOCH_NS`].
-fn header(w: &mut CdrWriter, stamp_ns: i64, frame_id: &str) {
+pub(crate) fn header(w: &mut CdrWriter, stamp_ns: i64, frame_id: &str) {
     let t = stamp_ns + EPOCH_NS;
     w.i32(t.div_euclid(1_000_000_000) as i32);
     w.u32(t.rem_euclid(1_000_000_000) as u32);
     w.string(frame_id);
 }
 
-fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
+pub(crate) fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
     w.f64(v.x);
     w.f64(v.y);
     w.f64(v.z);
 }
 
 /// `geometry_msgs/Pose` or `Transform`: translation, then the quaternion as (x, y, z, w).
-fn pose(w: &mut CdrWriter, iso: &Isometry3<f64>) {
+pub(crate) fn pose(w: &mut CdrWriter, iso: &Isometry3<f64>) {
     vector3(w, &iso.translation.vector);
     let q = iso.rotation.coords; // (i, j, k, w)
     for v in [q.x, q.y, q.z, q.w] {

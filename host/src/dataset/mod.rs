@@ -28,19 +28,26 @@
 //! depth, camera info), both offset by [`EPOCH_NS`] so that simulated time 0 is
 //! 2023-11-14T22:13:20Z and no stamp is ROS's "zero time". The file holds no wall-clock time
 //! and no compression, so the same configuration and seed give byte-identical files.
+//!
+//! [`write_results`] writes a scored run's `results.mcap` in the same encoding and on the same
+//! timeline: ground truth and aligned estimate, map and loop closures, in frame `map` (see
+//! `results.rs`).
 
 mod cdr;
 mod decode;
 mod encode;
 mod error;
+mod mcap_file;
 mod recorder;
 mod replay;
+mod results;
 mod schemas;
 mod topics;
 
 pub use error::DatasetError;
 pub use recorder::Recorder;
 pub use replay::{Replay, replay_messages};
+pub use results::{JudgedLoop, RunResults, write_results};
 pub use topics::Topic;
 
 /// Simulated time 0 in the file's ROS time: 1.7e9 s after the Unix epoch, in nanoseconds.

@@ -1,39 +1,25 @@
 //! Writes a simulated stream as an MCAP file of ROS 2 messages.
 //!
 //! The file is written under a temporary name beside the target and renamed when complete,
-//! so a failed recording never leaves a half-written file.
+//! so a failed recording never leaves a half-written file ([`McapFile`]).
 
 use std::collections::BTreeMap;
-use std::fs::{self, File};
-use std::io::BufWriter;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use sim::SimConfig;
 use sim::config::Side;
 use sim::sensors::{LaserScan, Message, ScanSide};
 
+use super::mcap_file::McapFile;
 use super::topics::{
     CAMERA_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
 };
-use super::{DatasetError, EPOCH_NS, encode, schemas};
-
-/// Target size of an MCAP chunk (before any compression; none is used). A camera frame
-/// (about 2.1 MB at 640 x 480) fits whole.
-const CHUNK_BYTES: u64 = 4 << 20;
-
-/// rosbag2's QoS for `/tf_static` (reliable, transient local: latched), so `ros2 bag play`
-/// offers it to late subscribers as `robot_state_publisher` does.
-const LATCHED_QOS: &str = "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 1\n  \
-deadline:\n    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n    \
-nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n    \
-nsec: 4294967295\n  avoid_ros_namespace_conventions: false";
+use super::{DatasetError, encode};
 
 /// An MCAP recording being written; [`Recorder::finish`] puts it in place.
 pub struct Recorder {
-    writer: Option<mcap::Writer<BufWriter<File>>>,
-    target: PathBuf,
-    tmp: PathBuf,
-    channels: BTreeMap<Topic, (u16, u32)>,
+    file: McapFile,
+    channels: BTreeMap<Topic, u16>,
     /// Per 2D scanner: scan period (s) and how long after its stamp a scan is complete (ns).
     scan_timing: [(f32, i64); 2],
 }
@@ -41,7 +27,7 @@ pub struct Recorder {
 impl std::fmt::Debug for Recorder {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Recorder")
-            .field("target", &self.target)
+            .field("target", &self.file.target())
             .field("channels", &self.channels)
             .finish_non_exhaustive()
     }
@@ -65,57 +51,19 @@ impl Recorder {
         sensors: sim::SensorSet,
         metadata: BTreeMap<String, String>,
     ) -> Result<Self, DatasetError> {
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .ok_or_else(|| DatasetError::invalid(path, "not a file name"))?;
-        let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-        let file = File::create(&tmp).map_err(DatasetError::io(path))?;
-        let options = mcap::WriteOptions::new()
-            .compression(None)
-            .profile("ros2")
-            .library(format!("vinebench {}", env!("CARGO_PKG_VERSION")))
-            .chunk_size(Some(CHUNK_BYTES));
+        let mut file = McapFile::create(path)?;
+        let mut channels = BTreeMap::new();
+        for topic in Topic::ALL.into_iter().filter(|t| t.in_set(&sensors)) {
+            let id = file.channel(topic.name(), topic.schema(), topic == Topic::TfStatic)?;
+            channels.insert(topic, id);
+        }
+        file.metadata("vinebench", metadata)?;
         let s = &config.sensors;
         let mut recorder = Self {
-            writer: None,
-            target: path.to_owned(),
-            tmp,
-            channels: BTreeMap::new(),
+            file,
+            channels,
             scan_timing: [scan_timing(&s.scan2d_front), scan_timing(&s.scan2d_back)],
         };
-        let mut writer = options
-            .create(BufWriter::new(file))
-            .map_err(DatasetError::mcap(path))?;
-        let mut schema_ids = BTreeMap::new();
-        for topic in Topic::ALL.into_iter().filter(|t| t.in_set(&sensors)) {
-            let schema_id = match schema_ids.get(topic.schema()) {
-                Some(&id) => id,
-                None => {
-                    let text = schemas::schema(topic.schema());
-                    let id = writer
-                        .add_schema(topic.schema(), "ros2msg", text.as_bytes())
-                        .map_err(DatasetError::mcap(path))?;
-                    schema_ids.insert(topic.schema(), id);
-                    id
-                }
-            };
-            let mut channel_meta = BTreeMap::new();
-            if topic == Topic::TfStatic {
-                channel_meta.insert("offered_qos_profiles".to_owned(), LATCHED_QOS.to_owned());
-            }
-            let id = writer
-                .add_channel(schema_id, topic.name(), "cdr", &channel_meta)
-                .map_err(DatasetError::mcap(path))?;
-            recorder.channels.insert(topic, (id, 0));
-        }
-        writer
-            .write_metadata(&mcap::records::Metadata {
-                name: "vinebench".to_owned(),
-                metadata,
-            })
-            .map_err(DatasetError::mcap(path))?;
-        recorder.writer = Some(writer);
         let mounts = [
             (IMU_FRAME, s.imu.mount.base_from_sensor()),
             (LIDAR_FRAME, s.lidar.mount.base_from_sensor()),
@@ -138,25 +86,13 @@ impl Recorder {
     }
 
     fn put(&mut self, topic: Topic, ready_ns: i64, data: &[u8]) -> Result<(), DatasetError> {
-        let (channel_id, sequence) = self.channels.get_mut(&topic).ok_or_else(|| {
+        let channel = *self.channels.get(&topic).ok_or_else(|| {
             DatasetError::invalid(
-                &self.target,
+                self.file.target(),
                 format!("{} is not among the recorded sensors", topic.name()),
             )
         })?;
-        let time = u64::try_from(ready_ns + EPOCH_NS).expect("simulated time after 1970");
-        let header = mcap::records::MessageHeader {
-            channel_id: *channel_id,
-            sequence: *sequence,
-            log_time: time,
-            publish_time: time,
-        };
-        *sequence += 1;
-        self.writer
-            .as_mut()
-            .expect("open until finished")
-            .write_to_known_channel(&header, data)
-            .map_err(DatasetError::mcap(&self.target))
+        self.file.put(channel, ready_ns, data)
     }
 
     fn scan(&mut self, m: &LaserScan) -> Result<(), DatasetError> {
@@ -198,30 +134,7 @@ impl Recorder {
     }
 
     /// Writes the summary, flushes and moves the file into place; returns its size in bytes.
-    pub fn finish(mut self) -> Result<u64, DatasetError> {
-        let mut writer = self.writer.take().expect("open until finished");
-        writer.finish().map_err(DatasetError::mcap(&self.target))?;
-        let file = writer
-            .into_inner()
-            .into_inner()
-            .map_err(|e| DatasetError::io(&self.target)(e.into_error()))?;
-        file.sync_all().map_err(DatasetError::io(&self.target))?;
-        let size = file
-            .metadata()
-            .map_err(DatasetError::io(&self.target))?
-            .len();
-        drop(file);
-        fs::rename(&self.tmp, &self.target).map_err(DatasetError::io(&self.target))?;
-        Ok(size)
-    }
-}
-
-impl Drop for Recorder {
-    fn drop(&mut self) {
-        // Only an unfinished recording still has its temporary file.
-        drop(self.writer.take());
-        if self.tmp.exists() {
-            let _ = fs::remove_file(&self.tmp);
-        }
+    pub fn finish(self) -> Result<u64, DatasetError> {
+        self.file.finish()
     }
 }

@@ -4,7 +4,8 @@
 //! introduced by a line of 80 `=` and a `MSG: pkg/Name` line (the format rosbag2 writes and
 //! Foxglove and `mcap-ros2-support` parse; MCAP spec, "Well-known schema encodings":
 //! <https://mcap.dev/spec/registry#ros2msg>). The texts are those of ROS 2 Humble's
-//! `common_interfaces` and `rcl_interfaces` with the comments left out.
+//! `common_interfaces` (`visualization_msgs/Marker` of version 4.2, with the texture and
+//! mesh-file fields added in 3.0) and `rcl_interfaces` with the comments left out.
 
 /// Each type with its definition and the types it uses directly.
 const DEFINITIONS: &[(&str, &str, &[&str])] = &[
@@ -14,9 +15,19 @@ const DEFINITIONS: &[(&str, &str, &[&str])] = &[
         &[],
     ),
     (
+        "builtin_interfaces/Duration",
+        "int32 sec\nuint32 nanosec\n",
+        &[],
+    ),
+    (
         "std_msgs/Header",
         "builtin_interfaces/Time stamp\nstring frame_id\n",
         &["builtin_interfaces/Time"],
+    ),
+    (
+        "std_msgs/ColorRGBA",
+        "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n",
+        &[],
     ),
     (
         "geometry_msgs/Vector3",
@@ -148,6 +159,58 @@ const DEFINITIONS: &[(&str, &str, &[&str])] = &[
         ],
     ),
     (
+        "nav_msgs/Path",
+        "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n",
+        &["std_msgs/Header", "geometry_msgs/PoseStamped"],
+    ),
+    (
+        "sensor_msgs/CompressedImage",
+        "std_msgs/Header header\nstring format\nuint8[] data\n",
+        &["std_msgs/Header"],
+    ),
+    (
+        "visualization_msgs/UVCoordinate",
+        "float64 u\nfloat64 v\n",
+        &[],
+    ),
+    (
+        "visualization_msgs/MeshFile",
+        "string filename\nuint8[] data\n",
+        &[],
+    ),
+    (
+        "visualization_msgs/Marker",
+        "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\n\
+         int32 LINE_LIST=5\nint32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\n\
+         int32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\nint32 TRIANGLE_LIST=11\n\
+         int32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\n\
+         std_msgs/Header header\n\
+         string ns\nint32 id\nint32 type\nint32 action\n\
+         geometry_msgs/Pose pose\ngeometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\n\
+         builtin_interfaces/Duration lifetime\nbool frame_locked\n\
+         geometry_msgs/Point[] points\nstd_msgs/ColorRGBA[] colors\n\
+         string texture_resource\nsensor_msgs/CompressedImage texture\n\
+         UVCoordinate[] uv_coordinates\n\
+         string text\n\
+         string mesh_resource\nMeshFile mesh_file\nbool mesh_use_embedded_materials\n",
+        &[
+            "std_msgs/Header",
+            "geometry_msgs/Pose",
+            "geometry_msgs/Vector3",
+            "std_msgs/ColorRGBA",
+            "builtin_interfaces/Duration",
+            "geometry_msgs/Point",
+            "sensor_msgs/CompressedImage",
+            "visualization_msgs/UVCoordinate",
+            "visualization_msgs/MeshFile",
+        ],
+    ),
+    (
+        "visualization_msgs/MarkerArray",
+        "Marker[] markers\n",
+        &["visualization_msgs/Marker"],
+    ),
+    (
         "tf2_msgs/TFMessage",
         "geometry_msgs/TransformStamped[] transforms\n",
         &["geometry_msgs/TransformStamped"],
@@ -225,5 +288,36 @@ mod tests {
                 "{dep} in\n{s}"
             );
         }
+    }
+
+    #[test]
+    fn a_marker_array_carries_the_whole_marker() {
+        let s = schema("visualization_msgs/msg/MarkerArray");
+        assert!(s.starts_with("Marker[] markers\n"), "{s}");
+        for dep in [
+            "visualization_msgs/Marker",
+            "std_msgs/Header",
+            "builtin_interfaces/Time",
+            "builtin_interfaces/Duration",
+            "geometry_msgs/Pose",
+            "geometry_msgs/Point",
+            "geometry_msgs/Quaternion",
+            "geometry_msgs/Vector3",
+            "std_msgs/ColorRGBA",
+            "sensor_msgs/CompressedImage",
+            "visualization_msgs/UVCoordinate",
+            "visualization_msgs/MeshFile",
+        ] {
+            assert_eq!(
+                s.matches(&format!("\nMSG: {dep}\n")).count(),
+                1,
+                "{dep} once in\n{s}"
+            );
+        }
+        assert!(
+            s.contains("\nint32 LINE_LIST=5\n")
+                && s.contains("\nbool mesh_use_embedded_materials\n"),
+            "{s}"
+        );
     }
 }

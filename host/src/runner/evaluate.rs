@@ -1,14 +1,19 @@
 //! Scores a finished run: APE (translation) of the final and of the online trajectory
 //! against ground truth, as evo computes it, and its loop closures judged against ground
-//! truth (see `loops.rs`).
+//! truth (see `loops.rs`); then writes the run's results.mcap
+//! ([`crate::dataset::write_results`]) with the estimate and map aligned by the transform
+//! of that APE.
 
 use std::path::Path;
 
 use anyhow::Context as _;
-use eval::{Alignment, ApeOptions, LoopCounts, Statistics};
+use eval::{Alignment, ApeOptions, LoopCounts, Sim3, Statistics, Trajectory};
+use plugin_api::EventKind;
 use serde::Serialize;
 
 use super::job::files;
+use super::loops::JudgedEvent;
+use crate::dataset::{JudgedLoop, RunResults};
 
 /// metrics.json.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -41,15 +46,30 @@ pub fn alignment_name(a: Alignment) -> &'static str {
     }
 }
 
-/// Evaluates the run in `dir`, writes its metrics.json and rewrites its events.json with
-/// the judgement of every accepted loop.
+/// The alignment named by [`alignment_name`] (as `metrics.json` records it).
+pub fn alignment_from_name(name: &str) -> Option<Alignment> {
+    [
+        Alignment::None,
+        Alignment::Origin,
+        Alignment::Se3,
+        Alignment::Sim3,
+        Alignment::Scale,
+        Alignment::FourDof,
+    ]
+    .into_iter()
+    .find(|&a| alignment_name(a) == name)
+}
+
+/// Evaluates the run in `dir`, writes its metrics.json, rewrites its events.json with
+/// the judgement of every accepted loop and writes its results.mcap.
 pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
     let gt = eval::read_tum(dir.join(files::GROUNDTRUTH))?;
     let options = ApeOptions {
         alignment,
         ..ApeOptions::default()
     };
-    let final_ = eval::evaluate_ape(&gt, &eval::read_tum(dir.join(files::ESTIMATE))?, &options)
+    let estimate = eval::read_tum(dir.join(files::ESTIMATE))?;
+    let final_ = eval::evaluate_ape(&gt, &estimate, &options)
         .with_context(|| format!("evaluating {}", dir.join(files::ESTIMATE).display()))?;
     let online_path = dir.join(files::ONLINE);
     let online_ape = if online_path.exists() {
@@ -72,6 +92,14 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
         loops,
     };
     super::worker::write_json(&dir.join(files::METRICS), &metrics)?;
+    write_results(
+        dir,
+        &gt,
+        &estimate,
+        &metrics.alignment,
+        &final_.transform,
+        &judged,
+    )?;
     let estimate_xy = final_
         .pairs
         .estimate
@@ -82,4 +110,45 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
         metrics,
         estimate_xy,
     })
+}
+
+/// Writes `dir`'s results.mcap: the ground truth, the estimate and map.ply (if any) moved
+/// into the ground truth's frame by `map_from_estimate` (the APE's alignment), and every
+/// judged accepted loop.
+fn write_results(
+    dir: &Path,
+    groundtruth: &Trajectory,
+    estimate: &Trajectory,
+    alignment: &str,
+    map_from_estimate: &Sim3,
+    judged: &[JudgedEvent],
+) -> anyhow::Result<()> {
+    let map_path = dir.join(files::MAP);
+    let map_points = if map_path.exists() {
+        Some(super::outputs::read_ply(&map_path)?)
+    } else {
+        None
+    };
+    let loops: Vec<JudgedLoop> = judged
+        .iter()
+        .filter(|j| j.event.kind == EventKind::LoopClosureAccepted)
+        .filter_map(|j| {
+            Some(JudgedLoop {
+                stamps_ns: j.event.loop_stamps_ns?,
+                true_loop: j.true_loop?,
+            })
+        })
+        .collect();
+    crate::dataset::write_results(
+        &dir.join(files::RESULTS),
+        &RunResults {
+            groundtruth,
+            estimate,
+            alignment,
+            map_from_estimate,
+            map_points: map_points.as_deref(),
+            loops: &loops,
+        },
+    )?;
+    Ok(())
 }

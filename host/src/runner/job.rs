@@ -45,6 +45,8 @@ pub mod files {
     pub const EVENTS: &str = "events.json";
     pub const TIMING: &str = "timing.json";
     pub const METRICS: &str = "metrics.json";
+    /// Ground truth, aligned estimate, map and loops for Foxglove (`dataset::write_results`).
+    pub const RESULTS: &str = "results.mcap";
     pub const LOG: &str = "worker.log";
     pub const RUN: &str = "run.toml";
 }

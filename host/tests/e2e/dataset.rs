@@ -222,20 +222,7 @@ fn a_damaged_or_missing_file_is_one_line_naming_it() {
 
 /// Runs tests/mcap/check_mcap.py with the `python3` first on PATH.
 fn python_check(path: &Path) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/mcap/check_mcap.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(path)
-        .output()
-        .expect("python3 on PATH (source scripts/setup.sh)");
-    assert!(
-        out.status.success(),
-        "{} failed (are tests/mcap/requirements.txt installed? `source scripts/setup.sh` \
-         puts them first on PATH): {}",
-        script.display(),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("check_mcap.py prints JSON")
+    crate::common::mcap_check("check_mcap.py", &[path])
 }
 
 fn f64s(v: &Value) -> Vec<f64> {

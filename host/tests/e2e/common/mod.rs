@@ -258,6 +258,29 @@ pub fn relative_errors(folder: &Path, dt: f64) -> Vec<(f64, f64)> {
     out
 }
 
+/// Runs `tests/mcap/<script>` (an independent check with Foxglove's MCAP reader and ROS 2
+/// decoder) on `args` with the `python3` first on PATH; returns the JSON it prints. Fails,
+/// saying how to get the decoder, if the script fails or cannot run.
+pub fn mcap_check<S: AsRef<std::ffi::OsStr>>(script: &str, args: &[S]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/mcap")
+        .join(script);
+    let out = Command::new("python3")
+        .arg(&script)
+        .args(args)
+        .output()
+        .expect("python3 on PATH (source scripts/setup.sh)");
+    assert!(
+        out.status.success(),
+        "{} failed (are tests/mcap/requirements.txt installed? `source scripts/setup.sh` \
+         puts them first on PATH): {}",
+        script.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{} prints JSON: {e}", script.display()))
+}
+
 pub fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
     v[((v.len() - 1) as f64 * q).round() as usize]
