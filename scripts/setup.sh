@@ -20,6 +20,8 @@ need_pkg libembree-dev
 # and Debian's venv module for its GTSAM environment below.
 need_pkg python3-dev
 need_pkg python3-venv
+# Debian's Chromium for the report's browser test (tests/browser), run headless.
+need_pkg chromium
 if ((${#apt_missing[@]})); then
   echo "setup: installing ${apt_missing[*]}" >&2
   export DEBIAN_FRONTEND=noninteractive
@@ -28,8 +30,9 @@ if ((${#apt_missing[@]})); then
 fi
 
 # Python tools of the tests in their own virtual environment (Debian's python forbids
-# global pip installs): evo, the reference trajectory evaluator (tests/evo), and mcap with
-# mcap-ros2-support, the independent reader of `vinebench record`'s files (tests/mcap).
+# global pip installs): evo, the reference trajectory evaluator (tests/evo), mcap with
+# mcap-ros2-support, the independent reader of `vinebench record`'s files (tests/mcap), and
+# websocket-client, the DevTools client of the report's browser check (tests/browser).
 vinebench_venv="${VINEBENCH_VENV:-$PWD/target/evo-venv}"
 if [ ! -x "$vinebench_venv/bin/python" ]; then
   if ! python3 -m venv "$vinebench_venv" >/dev/null 2>&1; then
@@ -53,6 +56,7 @@ ensure_requirements() {
 }
 ensure_requirements tests/evo/requirements.txt
 ensure_requirements tests/mcap/requirements.txt
+ensure_requirements tests/browser/requirements.txt
 # GTSAM 4.3's wheel for the "gtsam" backend, in a venv of Debian's own interpreter: the
 # bridge library embeds /usr/lib's libpython3.11, so the packages must be built for it
 # (plugins/gtsam-backend finds this venv, or VINEBENCH_GTSAM_VENV).

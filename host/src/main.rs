@@ -24,6 +24,8 @@ enum Command {
     Bench(vinebench::cmd::bench::BenchArgs),
     /// Run a sweep (a bench file plus seeds and world axes), resumable, here or on Slurm.
     Sweep(vinebench::cmd::sweep::SweepArgs),
+    /// Rebuild report.html of a bench's or a sweep's results folder.
+    Report(vinebench::cmd::report::ReportArgs),
     /// List the plugins on the search path.
     Plugins(vinebench::cmd::plugins::PluginsArgs),
     /// One run in its own process (started by run and bench).
@@ -45,6 +47,7 @@ fn main() -> std::process::ExitCode {
         Command::Bench(args) => vinebench::cmd::bench::run(&args),
         Command::Sweep(args) => vinebench::cmd::sweep::run(&args),
         Command::SweepTask(args) => vinebench::cmd::sweep::run_task(&args),
+        Command::Report(args) => vinebench::cmd::report::run(&args),
         Command::Plugins(args) => vinebench::cmd::plugins::run(&args),
         Command::Worker(args) => vinebench::cmd::worker::run(&args),
     };

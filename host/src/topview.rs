@@ -4,12 +4,20 @@
 
 use std::path::Path;
 
-use eval::plot::{Bounds, Canvas, Rgb};
+use eval::plot::{Chart, Mark, Rgb, Swatch};
 use sim::Simulation;
 use sim::world::Material;
 
 const PX_PER_M: f64 = 20.0;
 const CELL_M: f64 = 0.25;
+const LEAF: Rgb = [60, 120, 45];
+const GRAPE: Rgb = [90, 40, 110];
+const STEM: Rgb = [90, 60, 40];
+const POST: Rgb = [70, 70, 70];
+const PLANNED: Rgb = [255, 255, 255];
+const DRIVEN: Rgb = [220, 30, 30];
+const START: Rgb = [30, 200, 60];
+const END: Rgb = [20, 20, 20];
 
 fn shade(color: Rgb, factor: f64) -> Rgb {
     color.map(|c| (f64::from(c) * factor).clamp(0.0, 255.0) as u8)
@@ -21,12 +29,13 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
     let pad = v.headland_m + 1.0;
     let last_row = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
     let (min, max) = ((-pad, -pad), (v.row_length_m + pad, last_row + pad));
-    let size = |extent: f64| (extent * PX_PER_M).round() as u32;
-    let mut canvas = Canvas::new(
-        size(max.0 - min.0),
-        size(max.1 - min.1),
-        Bounds::new(min, max),
-    );
+    let mut chart = Chart::top_view(format!(
+        "{} rows x {} m, growth stage {}: route and driven path",
+        v.rows, v.row_length_m, v.growth_stage
+    ));
+    chart.x_range = Some((min.0, max.0));
+    chart.y_range = Some((min.1, max.1));
+    let mut ground = Vec::new();
 
     // Ground: soil in the block, grass around it, brighter where higher.
     let terrain = &sim.world.terrain;
@@ -48,42 +57,63 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
                 [120, 165, 95]
             };
             let h = terrain.height(cx, cy) / amplitude;
-            canvas.fill_rect(
-                (x, y),
-                (x + CELL_M, y + CELL_M),
+            ground.push((
+                [(x, y), (x + CELL_M, y + CELL_M)],
                 shade(base, 1.0 + 0.25 * h),
-            );
+            ));
         }
     }
+    chart.marks.push(Mark::Rects { rects: ground });
 
     // Canopy: the footprint of each plant's leaves, wood where there are none.
     let mesh = &sim.world.mesh;
+    let (mut leaves, mut grapes, mut stems) = (Vec::new(), Vec::new(), Vec::new());
     for plant in &sim.world.plants {
         for t in plant.triangles.clone() {
-            let color: Rgb = match mesh.materials[t] {
-                Material::Leaf => [60, 120, 45],
-                Material::Grape => [90, 40, 110],
+            let points = match mesh.materials[t] {
+                Material::Leaf => &mut leaves,
+                Material::Grape => &mut grapes,
                 _ => continue,
             };
             let [a, b, c] = mesh.corners(t);
             let centre = (a + b.coords + c.coords) / 3.0;
-            canvas.circle((f64::from(centre.x), f64::from(centre.y)), 1.5, color);
+            points.push((f64::from(centre.x), f64::from(centre.y)));
         }
-        canvas.circle((plant.base.x, plant.base.y), 2.0, [90, 60, 40]);
+        stems.push((plant.base.x, plant.base.y));
     }
-    for post in &sim.world.posts {
-        canvas.fill_rect(
-            (post.x - 0.06, post.y - 0.06),
-            (post.x + 0.06, post.y + 0.06),
-            [70, 70, 70],
-        );
+    for (points, color, radius_px) in [(leaves, LEAF, 1), (grapes, GRAPE, 1), (stems, STEM, 2)] {
+        chart.marks.push(Mark::Dots {
+            points,
+            color,
+            radius_px,
+        });
     }
+    chart.marks.push(Mark::Rects {
+        rects: sim
+            .world
+            .posts
+            .iter()
+            .map(|post| {
+                (
+                    [
+                        (post.x - 0.06, post.y - 0.06),
+                        (post.x + 0.06, post.y + 0.06),
+                    ],
+                    POST,
+                )
+            })
+            .collect(),
+    });
 
     // Route as planned (thin) and as driven (thick), start and end marked.
     for leg in &sim.route.legs {
         if let sim::robot::Leg::Drive(points) = leg {
             let line: Vec<(f64, f64)> = points.iter().map(|p| (p.x, p.y)).collect();
-            canvas.polyline(&line, [255, 255, 255], 1.0);
+            chart.marks.push(Mark::Line {
+                points: line,
+                color: PLANNED,
+                width_px: 1,
+            });
         }
     }
     let step = 50_000_000;
@@ -93,11 +123,34 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
             (p.x, p.y)
         })
         .collect();
-    canvas.polyline(&driven, [220, 30, 30], 3.0);
     if let (Some(&start), Some(&end)) = (driven.first(), driven.last()) {
-        canvas.circle(start, 7.0, [30, 200, 60]);
-        canvas.circle(end, 5.0, [20, 20, 20]);
+        chart.marks.push(Mark::Line {
+            points: driven,
+            color: DRIVEN,
+            width_px: 3,
+        });
+        chart.marks.push(Mark::Dots {
+            points: vec![start],
+            color: START,
+            radius_px: 7,
+        });
+        chart.marks.push(Mark::Dots {
+            points: vec![end],
+            color: END,
+            radius_px: 5,
+        });
     }
-    canvas.save_png(path)?;
+    let line = |color| Swatch::Line { color, width_px: 3 };
+    chart.legend = vec![
+        (line(DRIVEN), "driven (ground truth)".into()),
+        (line(PLANNED), "planned route".into()),
+        (Swatch::Box(START), "start".into()),
+        (Swatch::Box(END), "end".into()),
+        (Swatch::Box(LEAF), "leaves".into()),
+        (Swatch::Box(GRAPE), "grapes".into()),
+        (Swatch::Box(POST), "posts".into()),
+    ];
+    let width = ((max.0 - min.0) * PX_PER_M).round() as u32 + 100;
+    chart.save(path, width)?;
     Ok(())
 }

@@ -38,6 +38,9 @@ pub enum EvalError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// A plot could not be drawn (nothing to draw, or the drawing library failed).
+    #[error("plot {title:?}: {message}")]
+    Plot { title: String, message: String },
     /// A file could not be written.
     #[error("{}: cannot write", path.display())]
     Write {

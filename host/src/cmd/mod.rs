@@ -5,6 +5,7 @@ pub mod eval;
 pub mod export;
 pub mod plugins;
 pub mod record;
+pub mod report;
 pub mod run;
 pub mod simulate;
 pub mod sweep;

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use super::table::Table;
 
-const CAPTION: &str = "APE translation after alignment in metres; \
+pub(super) const CAPTION: &str = "APE translation after alignment in metres; \
     RTF: the system's real-time factor (simulated seconds per second spent in its calls, \
     finish included; the simulator's time is not counted); \
     loops: loop closures accepted; false loops: of those, the ones ground truth shows \

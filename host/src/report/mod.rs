@@ -7,13 +7,19 @@
 //! byte-identical reports. One file per output format:
 //! - `table.rs`: the format-independent table (columns, rows, cells, failures);
 //! - `markdown.rs`, `csv.rs`, `latex.rs`, `json.rs`: the renderers;
-//! - `plot.rs`: the overlay plots (PNG and SVG).
+//! - `plot.rs`: the overlay plots (PNG and SVG);
+//! - `html.rs` (with `load.rs`, which reads a results folder back, and `figures.rs`):
+//!   `report.html`, built from the results folder alone, so `vinebench report DIR`
+//!   rebuilds exactly what the bench wrote.
 
 mod csv;
+mod figures;
+pub mod html;
 mod json;
 mod latex;
+pub mod load;
 mod markdown;
-mod plot;
+pub mod plot;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -120,6 +126,24 @@ pub fn write_reports(
     write_file(&dir.join("table.json"), &json::render(&table)?)?;
     plot::write_plots(&dir.join("plots"), &table, truths)?;
     Ok(markdown)
+}
+
+/// Rebuilds `report.html` of the results folder `dir`, a bench's or a sweep's (which has
+/// the sweep marker); returns its path and size in bytes.
+pub fn rebuild_html(dir: &Path) -> anyhow::Result<(std::path::PathBuf, u64)> {
+    anyhow::ensure!(dir.is_dir(), "{}: no such results folder", dir.display());
+    let bytes = if crate::sweep::is_sweep_folder(dir) {
+        let agg = crate::sweep::aggregate::read(dir)?;
+        html::write_sweep_report(dir, &agg)?
+    } else {
+        let name = dir
+            .canonicalize()
+            .ok()
+            .and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| dir.display().to_string());
+        html::write_bench_report(dir, &name)?
+    };
+    Ok((dir.join(html::REPORT), bytes))
 }
 
 fn write_file(path: &Path, contents: &str) -> anyhow::Result<()> {

@@ -311,6 +311,14 @@ fn json_has_the_design_shape() {
     );
 }
 
+/// The contents of an SVG's `<text>` elements.
+fn svg_texts(svg: &str) -> Vec<&str> {
+    svg.split("</text>")
+        .filter_map(|chunk| chunk.rfind("<text").map(|i| &chunk[i..]))
+        .filter_map(|t| t.split_once('>').map(|(_, body)| body.trim()))
+        .collect()
+}
+
 fn png_pixels(path: &Path) -> (u32, u32, Vec<u8>) {
     let bytes = std::fs::read(path).unwrap();
     assert!(
@@ -358,14 +366,38 @@ fn plots_show_ground_truth_and_estimates() {
             height > 300,
             "expected a legend band below the plot, height {height}"
         );
+        let texts = svg_texts(&svg);
+        for text in [
+            "wheel-odometry",
+            "ground truth",
+            "x (m)",
+            "y (m)",
+            &format!("{scenario}: aligned estimates over ground truth"),
+        ] {
+            assert!(
+                texts.contains(&text),
+                "expected {text:?} among the SVG's texts {texts:?}"
+            );
+        }
         assert!(
-            svg.starts_with("<svg") && svg.contains("wheel-odometry") && svg.contains("#0072b2"),
-            "expected the legend naming wheel-odometry in blue in\n{svg}"
+            svg.starts_with("<svg") && svg.contains("#0072B2"),
+            "expected wheel-odometry in blue in\n{svg}"
+        );
+        // The PNG draws the same text: the legend band below the plot has dark glyph
+        // pixels (the SVG's legend labels, rasterised).
+        let legend_band = &pixels[((height - 30) * width * 3) as usize..];
+        let dark = legend_band
+            .chunks_exact(3)
+            .filter(|p| p.iter().all(|&v| v < 80))
+            .count();
+        assert!(
+            dark > 100,
+            "expected legend text in the PNG of {scenario}, found {dark} dark pixels"
         );
     }
     let s1 = read(&dir.path().join("plots/s1.svg"));
     assert!(
-        s1.contains("lio_sam: failed (timed out after 600 s, \"no map\")"),
+        svg_texts(&s1).contains(&"lio_sam: failed (timed out after 600 s, &quot;no map&quot;)"),
         "expected the failed system in the s1 legend in\n{s1}"
     );
     let s1_png = png_pixels(&dir.path().join("plots/s1.png")).2;

@@ -19,8 +19,9 @@ use std::time::Duration;
 use anyhow::Context as _;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
-pub use evaluate::{Metrics, alignment_name, evaluate};
+pub use evaluate::{Metrics, alignment_from_name, alignment_name, evaluate};
 pub use job::{Job, files};
+pub use outputs::{read_ply, write_grid};
 
 use crate::report::{RunRecord, RunStatus, ScenarioTruth};
 
@@ -73,11 +74,14 @@ pub struct Executed {
 }
 
 fn temp_sibling(out: &Path) -> PathBuf {
-    let name = out
-        .file_name()
+    out.with_file_name(format!(".{}.tmp-{}", folder_name(out), std::process::id()))
+}
+
+/// The last component of a results folder's path (`results` if it has none).
+fn folder_name(out: &Path) -> String {
+    out.file_name()
         .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "results".into());
-    out.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+        .unwrap_or_else(|| "results".into())
 }
 
 /// Runs the plan and writes its results folder.
@@ -107,6 +111,7 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
     let written = run_all(plan, &config, &tmp, &|_, _, _| {}).and_then(|(records, truths)| {
         let table =
             crate::report::write_reports(&tmp, &plan.scenarios, &plan.labels, &records, &truths)?;
+        crate::report::html::write_bench_report(&tmp, &folder_name(&plan.out))?;
         std::fs::File::create(tmp.join(MARKER))?;
         Ok((records, table))
     });

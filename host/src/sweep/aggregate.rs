@@ -8,7 +8,7 @@
 //!   byte-identical to an uninterrupted local one.
 //! - `speed.csv`: real-time factor, CPU time and peak memory, which depend on the machine.
 //! - `sweep.md`: both, as tables, and the failed runs with their reasons.
-//! - `plots/<scenario>-ate-vs-<axis>.svg`: ATE RMSE mean ± std (error bars over the seeds)
+//! - `plots/<scenario>-ate-vs-<axis>.svg` and `.png` (the same chart): ATE RMSE mean ± std (error bars over the seeds)
 //!   against each axis that takes two values or more, one line per system and point of the
 //!   other axes.
 //!
@@ -19,12 +19,13 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Context as _;
-use serde::Serialize;
+use eval::plot::{Chart, Height, Mark, Rgb, Swatch};
+use serde::{Deserialize, Serialize};
 
 use super::{Cell, Sweep, read_filed, run_dir, value_text, write_atomic};
 
 /// mean ± std, min, max of some numbers.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub mean: f64,
     pub std: Option<f64>,
@@ -50,7 +51,7 @@ pub fn summarize(xs: &[f64]) -> Option<Summary> {
 }
 
 /// One row of the aggregate.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Row {
     pub scenario: String,
     pub system: String,
@@ -78,7 +79,7 @@ pub struct Speed {
 }
 
 /// The aggregate of a sweep.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Aggregate {
     pub scenarios: Vec<String>,
     pub systems: Vec<String>,
@@ -363,8 +364,8 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             if values.len() > 1 {
                 let _ = writeln!(
                     md,
-                    "![ATE against {path}](plots/{})\n",
-                    plot_name(scenario, path)
+                    "![ATE against {path}](plots/{}.svg)\n",
+                    plot_stem(scenario, path)
                 );
             }
         }
@@ -402,8 +403,8 @@ pub fn render_markdown(agg: &Aggregate) -> String {
     md
 }
 
-/// File name of a plot: ASCII letters, digits, `.`, `-`, `_` kept, the rest `_`.
-fn plot_name(scenario: &str, axis: &str) -> String {
+/// File stem of a plot: ASCII letters, digits, `.`, `-`, `_` kept, the rest `_`.
+fn plot_stem(scenario: &str, axis: &str) -> String {
     let clean = |s: &str| -> String {
         s.chars()
             .map(|c| {
@@ -415,44 +416,31 @@ fn plot_name(scenario: &str, axis: &str) -> String {
             })
             .collect()
     };
-    format!("{}-ate-vs-{}.svg", clean(scenario), clean(axis))
+    format!("{}-ate-vs-{}", clean(scenario), clean(axis))
 }
+
+const PLOT_WIDTH_PX: u32 = 900;
 
 /// Colours of the systems, in order (Okabe–Ito, distinguishable in colour blindness).
-const COLOURS: [&str; 8] = [
-    "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442",
+const COLOURS: [Rgb; 8] = [
+    [0, 114, 178],
+    [213, 94, 0],
+    [0, 158, 115],
+    [204, 121, 167],
+    [230, 159, 0],
+    [86, 180, 233],
+    [0, 0, 0],
+    [240, 228, 66],
 ];
-const DASHES: [&str; 4] = ["", "6,3", "2,3", "8,3,2,3"];
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// A "nice" step for about `n` ticks over `span`.
-fn tick_step(span: f64, n: f64) -> f64 {
-    let raw = span / n;
-    let mag = 10f64.powf(raw.log10().floor());
-    let f = raw / mag;
-    let nice = if f < 1.5 {
-        1.0
-    } else if f < 3.0 {
-        2.0
-    } else if f < 7.0 {
-        5.0
-    } else {
-        10.0
-    };
-    nice * mag
-}
 
 /// Axis values by path, as TOML text.
 type Point = Vec<(String, String)>;
 
-/// The SVG of ATE against `axis` (index `k`) on `scenario`; `None` if nothing to draw.
-pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> {
+/// ATE RMSE (mean, error bars ± one sample std over the seeds) against axis `k` on
+/// `scenario`: one line per system and value of the other axes (the system's colour,
+/// lighter for each further value), set side by side so that error bars do not hide
+/// each other; `None` if nothing to draw.
+pub fn ate_chart(agg: &Aggregate, scenario: &str, k: usize) -> Option<Chart> {
     let (path, values) = &agg.axes[k];
     // One series per (system, point of the other axes).
     let mut series: BTreeMap<(usize, Point), Vec<(usize, Summary)>> = BTreeMap::new();
@@ -467,114 +455,40 @@ pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> 
     if series.is_empty() {
         return None;
     }
-    let top = series
-        .values()
-        .flatten()
-        .map(|(_, s)| s.max.max(s.mean + s.std.unwrap_or(0.0)))
-        .fold(0.0, f64::max);
-    let step = tick_step(if top > 0.0 { top } else { 1.0 }, 5.0);
-    let y_max = (top / step).ceil().max(1.0) * step;
-    let (w, h, left, right, top_m, bottom) = (820.0, 440.0, 70.0, 310.0, 40.0, 60.0);
-    let pw = w - left - right;
-    let ph = h - top_m - bottom;
-    let n = values.len() as f64;
-    let xp = |i: usize| left + pw * (i as f64 + 0.5) / n;
-    let yp = |v: f64| top_m + ph * (1.0 - v / y_max);
-    let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="DejaVu Sans, sans-serif" font-size="12">"#
+    let mut chart = Chart::new(
+        format!("{scenario}: ATE RMSE against {path}"),
+        path.rsplit('.').next().unwrap_or(path).to_owned(),
+        format!("ATE RMSE (m), mean ± std over {} seeds", agg.seeds.len()),
     );
-    let _ = writeln!(svg, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
-    let _ = writeln!(
-        svg,
-        r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}: ATE RMSE against {}</text>"#,
-        left + pw / 2.0,
-        escape(scenario),
-        escape(path)
-    );
-    let mut v = 0.0;
-    while v <= y_max + step * 1e-9 {
-        let y = yp(v);
-        let _ = writeln!(
-            svg,
-            r##"<line x1="{left}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"##,
-            left + pw,
-            left - 6.0,
-            y + 4.0,
-            trim_number(v, step)
-        );
-        v += step;
-    }
-    for (i, value) in values.iter().enumerate() {
-        let _ = writeln!(
-            svg,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-            xp(i),
-            top_m + ph + 18.0,
-            escape(value)
-        );
-    }
-    let _ = writeln!(
-        svg,
-        r#"<rect x="{left}" y="{top_m}" width="{pw}" height="{ph}" fill="none" stroke="black"/>"#
-    );
-    let _ = writeln!(
-        svg,
-        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-        left + pw / 2.0,
-        h - 16.0,
-        escape(path)
-    );
-    let _ = writeln!(
-        svg,
-        r#"<text transform="translate(18 {:.1}) rotate(-90)" text-anchor="middle">ATE RMSE (m), mean ± std over {} seeds</text>"#,
-        top_m + ph / 2.0,
-        agg.seeds.len()
-    );
-    let many = series.len();
+    chart.x_categories = values.clone();
+    chart.height = Height::Fixed(440);
+    let many = series.len() as f64;
     for (j, ((system, others), points)) in series.iter().enumerate() {
-        let colour = COLOURS[system % COLOURS.len()];
         let variant = series
             .keys()
             .filter(|(s, _)| s == system)
             .position(|(_, o)| o == others)
             .unwrap_or(0);
-        let dash = DASHES[variant % DASHES.len()];
-        // Side by side so that error bars do not hide each other.
-        let spacing = (0.3 * pw / n / many as f64).min(8.0);
-        let offset = (j as f64 - (many as f64 - 1.0) / 2.0) * spacing;
-        let pts: Vec<String> = points
-            .iter()
-            .map(|(x, s)| format!("{:.1},{:.1}", xp(*x) + offset, yp(s.mean)))
-            .collect();
-        let _ = writeln!(
-            svg,
-            r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}"/>"#,
-            pts.join(" ")
-        );
-        for (x, s) in points {
-            let cx = xp(*x) + offset;
-            if let Some(sd) = s.std {
-                let _ = writeln!(
-                    svg,
-                    r#"<path d="M{cx:.1},{:.1}V{:.1}M{:.1},{:.1}h8M{:.1},{:.1}h8" stroke="{colour}"/>"#,
-                    yp(s.mean - sd),
-                    yp(s.mean + sd),
-                    cx - 4.0,
-                    yp(s.mean - sd),
-                    cx - 4.0,
-                    yp(s.mean + sd)
-                );
-            }
-            let _ = writeln!(
-                svg,
-                r#"<circle cx="{cx:.1}" cy="{:.1}" r="3.5" fill="{colour}"/>"#,
-                yp(s.mean)
-            );
-        }
-        let ly = top_m + 10.0 + j as f64 * 20.0;
-        let lx = left + pw + 16.0;
+        let base = COLOURS[system % COLOURS.len()];
+        let lighten = 1.0 - 0.6f64.powi(variant as i32);
+        let color =
+            base.map(|c| (f64::from(c) + (255.0 - f64::from(c)) * lighten * 0.8).round() as u8);
+        let offset = (j as f64 - (many - 1.0) / 2.0) * (0.3 / many).min(0.06);
+        chart.marks.push(Mark::ErrorBars {
+            points: points
+                .iter()
+                .map(|(x, s)| {
+                    let sd = s.std.unwrap_or(0.0);
+                    (
+                        *x as f64 + offset,
+                        (s.mean - sd).max(0.0),
+                        s.mean,
+                        s.mean + sd,
+                    )
+                })
+                .collect(),
+            color,
+        });
         let mut name = agg.systems[*system].clone();
         if !others.is_empty() {
             // The key's last part: `plant_variation=1.0` for `vineyard.plant_variation`.
@@ -584,26 +498,61 @@ pub fn render_plot(agg: &Aggregate, scenario: &str, k: usize) -> Option<String> 
                 .collect();
             name += &format!(" ({})", o.join(", "));
         }
-        let _ = writeln!(
-            svg,
-            r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" stroke="{colour}" stroke-width="2" stroke-dasharray="{dash}"/><text x="{}" y="{}" font-size="11">{}</text>"#,
-            lx + 24.0,
-            lx + 30.0,
-            ly + 4.0,
-            escape(&name)
-        );
+        chart
+            .legend
+            .push((Swatch::Line { color, width_px: 2 }, name));
     }
-    svg.push_str("</svg>\n");
-    Some(svg)
+    let top = chart
+        .marks
+        .iter()
+        .filter_map(|m| match m {
+            Mark::ErrorBars { points, .. } => points.iter().map(|p| p.3).reduce(f64::max),
+            _ => None,
+        })
+        .fold(0.0, f64::max);
+    chart.y_range = Some((0.0, if top > 0.0 { top * 1.08 } else { 1.0 }));
+    Some(chart)
 }
 
-fn trim_number(v: f64, step: f64) -> String {
-    let decimals = if step >= 1.0 {
-        0
-    } else {
-        (-step.log10().floor()) as usize
-    };
-    format!("{v:.decimals$}")
+/// Reads the aggregate back from `out`'s `sweep.json`, with the speed summaries from
+/// `speed.csv` (whose rows are the aggregate's, in order).
+pub fn read(out: &Path) -> anyhow::Result<Aggregate> {
+    let path = out.join("sweep.json");
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "{}: cannot read (aggregate the sweep first: vinebench sweep FILE --collect)",
+            path.display()
+        )
+    })?;
+    let mut agg: Aggregate = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a sweep aggregate", path.display()))?;
+    let speed = out.join("speed.csv");
+    if let Ok(csv) = std::fs::read_to_string(&speed) {
+        // scenario, system, axes…, n, then mean/std/min/max of RTF, CPU s, peak RSS.
+        let first = 2 + agg.axes.len() + 1;
+        for (row, line) in agg.rows.iter_mut().zip(csv.lines().skip(1)) {
+            let fields: Vec<&str> = line.split(',').collect();
+            let summary = |k: usize| -> Option<Summary> {
+                let at = |i: usize| {
+                    fields
+                        .get(first + 4 * k + i)
+                        .and_then(|f| f.parse::<f64>().ok())
+                };
+                Some(Summary {
+                    mean: at(0)?,
+                    std: at(1),
+                    min: at(2)?,
+                    max: at(3)?,
+                })
+            };
+            row.speed = Speed {
+                realtime_factor: summary(0),
+                cpu_s: summary(1),
+                peak_rss_mb: summary(2),
+            };
+        }
+    }
+    Ok(agg)
 }
 
 /// Writes every aggregate file into `out` (each written whole, then renamed into place).
@@ -626,11 +575,20 @@ pub fn write(agg: &Aggregate, out: &Path) -> anyhow::Result<()> {
             if values.len() < 2 {
                 continue;
             }
-            if let Some(svg) = render_plot(agg, scenario, k) {
-                write_atomic(&plots.join(plot_name(scenario, path)), svg.as_bytes())?;
+            if let Some(chart) = ate_chart(agg, scenario, k) {
+                let stem = plot_stem(scenario, path);
+                write_atomic(
+                    &plots.join(format!("{stem}.svg")),
+                    chart.to_svg(PLOT_WIDTH_PX)?.as_bytes(),
+                )?;
+                write_atomic(
+                    &plots.join(format!("{stem}.png")),
+                    &chart.to_png(PLOT_WIDTH_PX)?,
+                )?;
             }
         }
     }
+    crate::report::html::write_sweep_report(out, agg)?;
     Ok(())
 }
 
@@ -647,23 +605,5 @@ mod tests {
         let one = summarize(&[0.7]).expect("one number");
         assert_eq!((one.mean, one.std, one.min, one.max), (0.7, None, 0.7, 0.7));
         assert_eq!(summarize(&[]), None);
-    }
-
-    #[test]
-    fn ticks_are_round() {
-        for (span, step) in [
-            (1.0, 0.2),
-            (0.37, 0.1),
-            (0.3, 0.05),
-            (6.0, 1.0),
-            (40.0, 10.0),
-        ] {
-            assert!(
-                (tick_step(span, 5.0) - step).abs() < 1e-12,
-                "{span}: {step}"
-            );
-        }
-        assert_eq!(trim_number(0.15, 0.05), "0.15");
-        assert_eq!(trim_number(3.0, 1.0), "3");
     }
 }

@@ -37,6 +37,11 @@ use crate::runner::{Plan, PlannedRun};
 /// Marks a folder as a sweep folder, so a sweep may resume in it.
 const MARKER: &str = ".vinebench-sweep";
 
+/// Whether `dir` is a sweep's folder (it has the sweep's marker file).
+pub fn is_sweep_folder(dir: &Path) -> bool {
+    dir.join(MARKER).exists()
+}
+
 /// One axis: a world key by its dotted path and the values it takes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {

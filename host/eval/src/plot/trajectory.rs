@@ -1,20 +1,38 @@
 //! Top view (x right, y up) of a reference (dark grey, drawn on top) and an aligned
-//! estimate coloured by its error with viridis (red where an error is missing), as evo's `--plot_mode xy`
-//! with colour-mapped APE.
+//! estimate coloured by its error with viridis (red where an error is missing), as evo's
+//! `--plot_mode xy` with colour-mapped APE.
 
 use std::path::Path;
 
 use nalgebra::Isometry3;
 
-use super::{Bounds, Canvas, Drawing, Rgb, Svg, viridis};
+use super::{Chart, ColorBar, Mark, Rgb, Swatch, viridis};
 use crate::EvalError;
 
 const WIDTH: u32 = 1200;
-const HEIGHT: u32 = 900;
 const REFERENCE: Rgb = [90, 90, 90];
 const MISSING: Rgb = [200, 80, 80];
-/// Colour levels; consecutive segments with the same level become one polyline.
-const LEVELS: f64 = 64.0;
+
+/// The segments of `points` coloured by `values` (one per point, the colour of a segment
+/// is its first point's) with viridis over `(lo, hi)`; `MISSING` red where a value is not
+/// finite.
+pub fn error_colored_path(points: &[(f64, f64)], values: &[f64], (lo, hi): (f64, f64)) -> Mark {
+    let color = |e: f64| {
+        if e.is_finite() {
+            viridis(if hi > lo { (e - lo) / (hi - lo) } else { 0.0 })
+        } else {
+            MISSING
+        }
+    };
+    Mark::ColoredSegments {
+        segments: points
+            .windows(2)
+            .zip(values)
+            .map(|(w, &e)| ([w[0], w[1]], color(e)))
+            .collect(),
+        width_px: 3,
+    }
+}
 
 /// Writes a top view of `reference` (grey) and `estimate` coloured by `errors` (one per
 /// estimate pose, NaN for none) as PNG or SVG, chosen by the extension of `path`.
@@ -33,106 +51,60 @@ pub fn plot_trajectories(
             .collect()
     };
     let (reference, estimate) = (xy(reference), xy(estimate));
-    let data = Bounds::around(reference.iter().chain(&estimate).copied(), 0.0)
-        .ok_or_else(|| EvalError::InvalidOption("nothing to plot".into()))?;
-    let margin = 0.05 * data.width().max(data.height()).max(1e-3);
-    // Room on the right for the colour bar.
-    let bounds = Bounds::new(
-        (data.min.0 - margin, data.min.1 - margin),
-        (
-            data.max.0 + margin + 0.15 * data.width().max(data.height()),
-            data.max.1 + margin,
-        ),
-    );
     let (lo, hi) = errors
         .iter()
         .filter(|e| e.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &e| {
             (lo.min(e), hi.max(e))
         });
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some("png") => {
-            let mut canvas = Canvas::new(WIDTH, HEIGHT, bounds);
-            draw(&mut canvas, &reference, &estimate, errors, (lo, hi));
-            canvas.save_png(path)
-        }
-        Some("svg") => {
-            let mut svg = Svg::new(WIDTH, HEIGHT, bounds);
-            let (bar_min, bar_max) = draw(&mut svg, &reference, &estimate, errors, (lo, hi));
-            let m = *svg.mapping();
-            let label = |px: (f64, f64)| m.to_world(px);
-            let (bx, _) = m.to_pixel(bar_max);
-            let (_, top) = m.to_pixel(bar_max);
-            let (_, bottom) = m.to_pixel(bar_min);
-            svg.text(
-                label((bx + 6.0, top + 6.0)),
-                14.0,
-                [0, 0, 0],
-                &format!("{hi:.4}"),
-            );
-            svg.text(
-                label((bx + 6.0, bottom)),
-                14.0,
-                [0, 0, 0],
-                &format!("{lo:.4}"),
-            );
-            svg.save(path)
-        }
-        _ => Err(EvalError::Encode {
-            path: path.to_path_buf(),
-            message: "unknown image type: use a .png or .svg extension".into(),
-        }),
-    }
-}
-
-/// Draws the paths and the colour bar; returns the bar's world corners (min, max).
-fn draw<D: Drawing>(
-    d: &mut D,
-    reference: &[(f64, f64)],
-    estimate: &[(f64, f64)],
-    errors: &[f64],
-    (lo, hi): (f64, f64),
-) -> ((f64, f64), (f64, f64)) {
-    let level = |e: f64| -> Option<u32> {
-        e.is_finite().then(|| {
-            let t = if hi > lo { (e - lo) / (hi - lo) } else { 0.0 };
-            (t * (LEVELS - 1.0)).round() as u32
-        })
-    };
-    let color = |l: Option<u32>| l.map_or(MISSING, |l| viridis(f64::from(l) / (LEVELS - 1.0)));
-    let mut start = 0;
-    for i in 1..=estimate.len() {
-        let boundary = i == estimate.len() || level(errors[i]) != level(errors[start]);
-        if boundary {
-            // Run start..i shares a colour; include the next point to stay connected.
-            let end = (i + 1).min(estimate.len());
-            d.polyline(&estimate[start..end], color(level(errors[start])), 3.0);
-            start = i;
-        }
-    }
+    let mut chart = Chart::top_view("APE (translation) along the aligned estimate");
+    chart
+        .marks
+        .push(error_colored_path(&estimate, errors, (lo, hi)));
     // The reference on top, thin, so it stays visible under a noisy estimate.
-    d.polyline(reference, REFERENCE, 1.5);
+    chart.marks.push(Mark::Line {
+        points: reference,
+        color: REFERENCE,
+        width_px: 1,
+    });
     if let Some(&first) = estimate.first() {
-        d.circle(first, 5.0, [0, 0, 0]);
+        chart.marks.push(Mark::Dots {
+            points: vec![first],
+            color: [0, 0, 0],
+            radius_px: 5,
+        });
     }
-    let m = *d.bounds_mapping();
-    let (x0, x1) = (f64::from(m.width()) - 70.0, f64::from(m.width()) - 50.0);
-    let (top, bottom) = (60.0, f64::from(m.height()) - 60.0);
-    let steps = 64;
-    for k in 0..steps {
-        let y_hi = bottom - (bottom - top) * f64::from(k + 1) / f64::from(steps);
-        let y_lo = bottom - (bottom - top) * f64::from(k) / f64::from(steps);
-        d.fill_rect(
-            m.to_world((x0, y_lo)),
-            m.to_world((x1, y_hi)),
-            viridis(f64::from(k) / f64::from(steps - 1)),
-        );
+    chart.legend.push((
+        Swatch::Line {
+            color: REFERENCE,
+            width_px: 2,
+        },
+        "reference".into(),
+    ));
+    chart.legend.push((
+        Swatch::Line {
+            color: viridis(0.5),
+            width_px: 3,
+        },
+        "estimate (colour: APE)".into(),
+    ));
+    if errors.iter().any(|e| !e.is_finite()) {
+        chart.legend.push((
+            Swatch::Line {
+                color: MISSING,
+                width_px: 3,
+            },
+            "estimate without a reference pose".into(),
+        ));
     }
-    (m.to_world((x0, bottom)), m.to_world((x1, top)))
+    if lo.is_finite() {
+        chart.color_bar = Some(ColorBar {
+            label: "APE translation (m)".into(),
+            min: lo,
+            max: hi,
+        });
+    }
+    chart.save(path, WIDTH)
 }
 
 #[cfg(test)]
@@ -157,10 +129,14 @@ mod tests {
         let svg = dir.path().join("p.svg");
         plot_trajectories(&svg, &poses, &poses, &errors).unwrap();
         let text = std::fs::read_to_string(&svg).unwrap();
-        assert!(
-            text.contains("<polyline") && text.contains("0.4900"),
-            "expected paths and the max label in the SVG"
-        );
+        assert!(text.contains("<polyline"), "expected paths in the SVG");
+        let texts = crate::plot::chart::tests::svg_texts(&text);
+        for expected in ["0.49", "APE translation (m)", "reference", "x (m)"] {
+            assert!(
+                texts.contains(&expected),
+                "expected {expected:?} in the SVG's texts {texts:?}"
+            );
+        }
         let err = plot_trajectories(dir.path().join("p.jpg"), &poses, &poses, &errors).unwrap_err();
         assert!(
             err.to_string().contains("p.jpg"),

@@ -1,0 +1,293 @@
+//! The report's per-system and per-run figures: the map from above (the paper's Fig. 4),
+//! the occupancy grid, and the translation error against time.
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use eval::plot::{Chart, ColorBar, Mark, Rgb, Swatch, viridis};
+
+use super::load::RunDetail;
+
+/// Points drawn of a map at most: a top view at report size shows no more.
+const MAX_MAP_POINTS: usize = 400_000;
+/// Points of a line in an inline SVG at most (the page stays light).
+pub(super) const MAX_LINE_POINTS: usize = 1500;
+const TRAJECTORY: Rgb = [220, 30, 30];
+/// The map is drawn this far around the trajectory's bounding box, metres.
+const MAP_MARGIN_M: f64 = 6.0;
+
+/// Every `k`-th point (and the last) so that at most `max` remain.
+pub(super) fn decimate<T: Copy>(points: &[T], max: usize) -> Vec<T> {
+    if points.len() <= max {
+        return points.to_vec();
+    }
+    let step = points.len().div_ceil(max.max(2) - 1);
+    let mut out: Vec<T> = points.iter().step_by(step).copied().collect();
+    if (points.len() - 1) % step != 0 {
+        out.extend(points.last().copied());
+    }
+    out
+}
+
+/// The map of `map.ply` from above, points coloured by height (viridis between the 2nd
+/// and 98th percentile, so a few stray points do not wash the colours out), the system's
+/// own trajectory (its map frame) over it; `None` without a map.
+pub(super) fn map_chart(
+    title: &str,
+    run_dir: &Path,
+    detail: &RunDetail,
+) -> anyhow::Result<Option<Chart>> {
+    let path = run_dir.join(crate::runner::files::MAP);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let points = crate::runner::read_ply(&path)?;
+    // The map around the trajectory: a lidar's far returns (ground rings tens of metres
+    // out) would shrink the vineyard to a corner.
+    let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for &(x, y) in &detail.estimate_raw_xy {
+        (lo_x, hi_x, lo_y, hi_y) = (lo_x.min(x), hi_x.max(x), lo_y.min(y), hi_y.max(y));
+    }
+    let near = |p: &[f32; 3]| {
+        let (x, y) = (f64::from(p[0]), f64::from(p[1]));
+        !lo_x.is_finite()
+            || (x >= lo_x - MAP_MARGIN_M
+                && x <= hi_x + MAP_MARGIN_M
+                && y >= lo_y - MAP_MARGIN_M
+                && y <= hi_y + MAP_MARGIN_M)
+    };
+    let total = points.len();
+    let points: Vec<[f32; 3]> = points.into_iter().filter(near).collect();
+    let points = decimate(&points, MAX_MAP_POINTS);
+    if points.is_empty() {
+        return Ok(None);
+    }
+    let mut z: Vec<f32> = points
+        .iter()
+        .map(|p| p[2])
+        .filter(|v| v.is_finite())
+        .collect();
+    z.sort_by(f32::total_cmp);
+    let pick = |q: f64| f64::from(z[((z.len() - 1) as f64 * q).round() as usize]);
+    let (lo, hi) = (pick(0.02), pick(0.98));
+    let mut chart = Chart::top_view(title);
+    chart.marks.push(Mark::Pixels {
+        points: points
+            .iter()
+            .map(|p| {
+                let t = if hi > lo {
+                    (f64::from(p[2]) - lo) / (hi - lo)
+                } else {
+                    0.5
+                };
+                ((f64::from(p[0]), f64::from(p[1])), viridis(t))
+            })
+            .collect(),
+    });
+    chart.marks.push(Mark::Line {
+        points: decimate(&detail.estimate_raw_xy, 20 * MAX_LINE_POINTS),
+        color: TRAJECTORY,
+        width_px: 2,
+    });
+    chart.legend.push((
+        Swatch::Line {
+            color: TRAJECTORY,
+            width_px: 2,
+        },
+        "estimated trajectory (map frame)".into(),
+    ));
+    chart.legend.push((
+        Swatch::Box(viridis(0.6)),
+        format!(
+            "{} of {total} map points (within {MAP_MARGIN_M} m of the trajectory)",
+            points.len()
+        ),
+    ));
+    chart.color_bar = Some(ColorBar {
+        label: "height z (m)".into(),
+        min: lo,
+        max: hi,
+    });
+    Ok(Some(chart))
+}
+
+/// `grid.pgm` with `grid.yaml` (map_server's format) from above in metres, occupied black,
+/// free white, unknown grey, the system's trajectory over it; `None` without a grid.
+pub(super) fn grid_chart(
+    title: &str,
+    run_dir: &Path,
+    detail: &RunDetail,
+) -> anyhow::Result<Option<Chart>> {
+    let (pgm, yaml) = (
+        run_dir.join(crate::runner::files::GRID),
+        run_dir.join(crate::runner::files::GRID_YAML),
+    );
+    if !pgm.exists() {
+        return Ok(None);
+    }
+    let (width, height, cells) = read_pgm(&pgm)?;
+    let (resolution, origin) = read_grid_yaml(&yaml)?;
+    let mut rects = Vec::with_capacity(cells.len());
+    for (k, &v) in cells.iter().enumerate() {
+        // PGM rows run from the top: row 0 is the grid's last (largest y).
+        let (col, row) = (k % width, height - 1 - k / width);
+        let x = origin.0 + col as f64 * resolution;
+        let y = origin.1 + row as f64 * resolution;
+        rects.push(([(x, y), (x + resolution, y + resolution)], [v, v, v]));
+    }
+    let mut chart = Chart::top_view(title);
+    chart.marks.push(Mark::Rects { rects });
+    chart.marks.push(Mark::Line {
+        points: decimate(&detail.estimate_raw_xy, 20 * MAX_LINE_POINTS),
+        color: TRAJECTORY,
+        width_px: 2,
+    });
+    chart.legend = vec![
+        (
+            Swatch::Line {
+                color: TRAJECTORY,
+                width_px: 2,
+            },
+            "estimated trajectory (map frame)".into(),
+        ),
+        (Swatch::Box([0, 0, 0]), "occupied".into()),
+        (Swatch::Hollow, "free".into()),
+        (Swatch::Box([205, 205, 205]), "unknown".into()),
+    ];
+    chart.legend.push((
+        Swatch::Box([120, 120, 120]),
+        format!("{width} x {height} cells of {resolution} m"),
+    ));
+    Ok(Some(chart))
+}
+
+/// APE translation of every associated pose against time since the first.
+pub(super) fn error_chart(title: &str, detail: &RunDetail) -> Option<Chart> {
+    let t0 = *detail.stamps_s.first()?;
+    let points: Vec<(f64, f64)> = detail
+        .stamps_s
+        .iter()
+        .zip(&detail.errors_m)
+        .map(|(&t, &e)| (t - t0, e))
+        .collect();
+    let mut chart = Chart::new(title, "time (s)", "APE translation (m)");
+    chart.height = eval::plot::Height::Fixed(300);
+    let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
+    chart.y_range = Some((0.0, if top > 0.0 { top * 1.05 } else { 1.0 }));
+    chart.marks.push(Mark::Line {
+        points: decimate(&points, MAX_LINE_POINTS / 2),
+        color: [0, 114, 178],
+        width_px: 2,
+    });
+    Some(chart)
+}
+
+/// A binary PGM (`P5`, maxval ≤ 255): width, height, pixels row by row from the top.
+fn read_pgm(path: &Path) -> anyhow::Result<(usize, usize, Vec<u8>)> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bad = |why: &str| anyhow::anyhow!("{}: not a binary PGM ({why})", path.display());
+    // Four whitespace-separated header tokens, then one whitespace byte, then the pixels.
+    let mut tokens = Vec::new();
+    let mut i = 0;
+    while tokens.len() < 4 {
+        while i < bytes.len() && bytes[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let start = i;
+        while i < bytes.len() && !bytes[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        if start == i {
+            return Err(bad("short header"));
+        }
+        tokens.push(String::from_utf8_lossy(&bytes[start..i]).into_owned());
+    }
+    if tokens[0] != "P5" {
+        return Err(bad("magic is not P5"));
+    }
+    let number = |s: &str| s.parse::<usize>().map_err(|_| bad("header is not numbers"));
+    let (w, h, max) = (
+        number(&tokens[1])?,
+        number(&tokens[2])?,
+        number(&tokens[3])?,
+    );
+    if max > 255 {
+        return Err(bad("16-bit pixels"));
+    }
+    let data = bytes.get(i + 1..).unwrap_or_default();
+    if data.len() != w * h {
+        return Err(bad(&format!("{} pixel bytes for {w} x {h}", data.len())));
+    }
+    Ok((w, h, data.to_vec()))
+}
+
+/// `resolution` and `origin` (x, y) of a map_server YAML.
+fn read_grid_yaml(path: &Path) -> anyhow::Result<(f64, (f64, f64))> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let field = |key: &str| {
+        text.lines()
+            .find_map(|l| {
+                l.strip_prefix(key)?
+                    .trim_start()
+                    .strip_prefix(':')
+                    .map(str::trim)
+            })
+            .with_context(|| format!("{}: no {key}", path.display()))
+    };
+    let resolution: f64 = field("resolution")?
+        .parse()
+        .with_context(|| format!("{}: resolution is not a number", path.display()))?;
+    let origin: Vec<f64> = field("origin")?
+        .trim_matches(|c| c == '[' || c == ']')
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{}: origin is not [x, y, yaw]", path.display()))?;
+    anyhow::ensure!(
+        origin.len() >= 2 && resolution > 0.0,
+        "{}: expected a positive resolution and origin [x, y, yaw]",
+        path.display()
+    );
+    Ok((resolution, (origin[0], origin[1])))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimation_keeps_both_ends_and_the_bound() {
+        let v: Vec<usize> = (0..1001).collect();
+        let d = decimate(&v, 100);
+        assert!(d.len() <= 100, "{}", d.len());
+        assert_eq!((d[0], *d.last().unwrap()), (0, 1000));
+        assert_eq!(decimate(&v[..10], 100).len(), 10);
+    }
+
+    #[test]
+    fn grids_read_back_as_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = plugin_api::OccupancyGrid {
+            width: 3,
+            height: 2,
+            resolution_m: 0.5,
+            origin: [-1.0, 2.0, 0.0],
+            cells: vec![-1, 0, 100, 100, 0, -1],
+        };
+        let (pgm, yaml) = (dir.path().join("g.pgm"), dir.path().join("g.yaml"));
+        crate::runner::write_grid(&pgm, &yaml, &grid).unwrap();
+        let (w, h, px) = read_pgm(&pgm).unwrap();
+        assert_eq!((w, h), (3, 2));
+        // The last grid row first.
+        assert_eq!(px, [0, 254, 205, 205, 254, 0]);
+        assert_eq!(read_grid_yaml(&yaml).unwrap(), (0.5, (-1.0, 2.0)));
+        std::fs::write(&pgm, b"P2\n3 2\n255\n").unwrap();
+        assert!(read_pgm(&pgm).unwrap_err().to_string().contains("g.pgm"));
+    }
+}
