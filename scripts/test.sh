@@ -15,4 +15,6 @@ cargo clippy --workspace --all-targets --release -- -D warnings
 # A single-node Slurm on localhost for the Slurm sweep test, which then must not skip.
 bash scripts/slurm-local.sh
 export VINEBENCH_REQUIRE_SLURM=1
+# scripts/setup.sh installed Chromium for the report's browser check, which then must not skip.
+export VINEBENCH_REQUIRE_BROWSER=1
 cargo test --workspace --release

@@ -494,3 +494,52 @@ fn cut_routes_are_said_to_be_cut() {
         );
     }
 }
+
+#[test]
+fn loops_are_segments_green_when_true_and_red_when_false() {
+    use super::plot::{LoopSegment, Track, scenario_chart};
+    let truth: Vec<(f64, f64)> = (0..50).map(|i| (f64::from(i) * 0.2, 0.0)).collect();
+    let loops = [
+        LoopSegment {
+            from: (1.0, 0.0),
+            to: (5.0, 0.0),
+            true_loop: true,
+        },
+        LoopSegment {
+            from: (2.0, 0.0),
+            to: (8.0, 1.0),
+            true_loop: false,
+        },
+        LoopSegment {
+            from: (3.0, 0.0),
+            to: (6.0, 0.0),
+            true_loop: true,
+        },
+    ];
+    let tracks = [
+        Track {
+            plugin: "a",
+            plugin_index: 0,
+            outcome: Ok((&truth, &loops)),
+        },
+        Track {
+            plugin: "b",
+            plugin_index: 1,
+            outcome: Err("crashed"),
+        },
+    ];
+    let svg = scenario_chart("s9", &truth, &tracks).to_svg(800).unwrap();
+    let segments = |colour: &str| {
+        svg.matches(&format!("stroke=\"{colour}\" stroke-width=\"1\""))
+            .count()
+    };
+    assert_eq!((segments("#00963C"), segments("#DC0000")), (2, 1));
+    let texts = svg_texts(&svg);
+    for label in [
+        "true loop closures (2)",
+        "false loop closures (1)",
+        "b: failed (crashed)",
+    ] {
+        assert!(texts.contains(&label), "{label:?} not in {texts:?}");
+    }
+}

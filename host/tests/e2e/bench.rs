@@ -273,6 +273,9 @@ fn paper_bench_prints_the_table_for_s0_to_s3() {
         "the table says the routes were cut:\n{stdout}"
     );
     let table = json(&out.join("table.json"));
+    // The report: every run, the maps of lio-sam, rtabmap (and its grid), orbslam2 and
+    // both staticmappings.
+    crate::report::check_bench_report(&out, 6);
     let labels = [
         "wheel-odometry",
         "wheel-imu-odometry",
@@ -437,6 +440,8 @@ fn faulty_plugins_cost_their_own_run_only() {
         );
     }
     assert_eq!(table["s0"]["odom"]["status"], "ok");
+    // The report names every failure and still renders.
+    crate::report::check_bench_report(&faulty_out, 0);
     for f in [
         "estimate.tum",
         "groundtruth.tum",

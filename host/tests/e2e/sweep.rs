@@ -108,8 +108,32 @@ fn check_aggregate(out: &Path) {
         "sweep.csv",
         "speed.csv",
         "plots/s1-ate-vs-vineyard.growth_stage.svg",
+        "plots/s1-ate-vs-vineyard.growth_stage.png",
     ] {
         assert!(out.join(f).is_file(), "{f} written");
+    }
+    // The page: every row's mean ATE as the aggregate has it, the plot inline; it renders
+    // in a browser, and `vinebench report` rebuilds it byte for byte.
+    let report = out.join("report.html");
+    let page = std::fs::read_to_string(&report).expect("report.html");
+    for row in rows {
+        let ate = &row["ate_rmse_m"];
+        let shown = format!(
+            "{:.3} ± {:.3}",
+            ate["mean"].as_f64().expect("mean"),
+            ate["std"].as_f64().expect("std")
+        );
+        assert!(page.contains(&shown), "{shown} ({row}) not in the page");
+    }
+    assert!(page.contains("ATE RMSE against vineyard.growth_stage"));
+    let o = vinebench(&["report", out.to_str().expect("utf-8")]);
+    assert!(o.status.success(), "vinebench report: {}", text(&o.stderr));
+    assert!(
+        std::fs::read_to_string(&report).expect("report.html") == page,
+        "vinebench report rebuilt a different sweep page"
+    );
+    if let Some(summary) = crate::report::browser_check(&report, &[]) {
+        assert!(summary["svgs"].as_u64() >= Some(1), "{summary}");
     }
 }
 
