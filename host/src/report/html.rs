@@ -512,18 +512,7 @@ fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
 
 /// The page of a sweep from its aggregate and plots.
 pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyhow::Result<String> {
-    use crate::sweep::aggregate::{Summary, ate_chart};
-    let pm = |s: Option<Summary>, d: usize| match s {
-        None => "–".to_owned(),
-        Some(Summary {
-            mean, std: None, ..
-        }) => format!("{mean:.d$}"),
-        Some(Summary {
-            mean,
-            std: Some(sd),
-            ..
-        }) => format!("{mean:.d$} ± {sd:.d$}"),
-    };
+    use crate::sweep::aggregate::{ate_chart, failure_lines, pm};
     let mut body = String::new();
     let _ = writeln!(body, "<h1>vinebench sweep: {}</h1>", esc(name));
     let seeds: Vec<String> = agg.seeds.iter().map(u64::to_string).collect();
@@ -605,16 +594,7 @@ pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyho
         }
         body.push_str("</section>\n");
     }
-    let failures: Vec<String> = agg
-        .rows
-        .iter()
-        .flat_map(|r| {
-            r.failures.iter().map(move |f| {
-                let point: Vec<String> = r.axes.iter().map(|(p, v)| format!("{p}={v}")).collect();
-                format!("{} {} {}: {f}", r.scenario, r.system, point.join(" "))
-            })
-        })
-        .collect();
+    let failures = failure_lines(agg);
     if !failures.is_empty() {
         body.push_str("<section id=\"failed\"><h2>Failed runs</h2><ul>\n");
         for f in failures {

@@ -293,7 +293,21 @@ pub fn render_speed_csv(agg: &Aggregate) -> String {
     )
 }
 
-fn pm(s: Option<Summary>, decimals: usize) -> String {
+/// Each failed run as `scenario system key=value…: seed s: reason`.
+pub fn failure_lines(agg: &Aggregate) -> Vec<String> {
+    agg.rows
+        .iter()
+        .flat_map(|r| {
+            r.failures.iter().map(move |f| {
+                let point: Vec<String> = r.axes.iter().map(|(p, v)| format!("{p}={v}")).collect();
+                format!("{} {} {}: {f}", r.scenario, r.system, point.join(" "))
+            })
+        })
+        .collect()
+}
+
+/// `mean ± std` with `decimals` (the mean alone for one run, `–` for none).
+pub fn pm(s: Option<Summary>, decimals: usize) -> String {
     match s {
         None => "–".to_owned(),
         Some(Summary {
@@ -370,15 +384,9 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             }
         }
     }
-    let failed: Vec<String> = agg
-        .rows
+    let failed: Vec<String> = failure_lines(agg)
         .iter()
-        .flat_map(|r| {
-            r.failures.iter().map(move |f| {
-                let point: Vec<String> = r.axes.iter().map(|(p, v)| format!("{p}={v}")).collect();
-                format!("- {} {} {}: {f}", r.scenario, r.system, point.join(" "))
-            })
-        })
+        .map(|f| format!("- {f}"))
         .collect();
     if !failed.is_empty() {
         let _ = writeln!(md, "## Failed runs\n\n{}\n", failed.join("\n"));

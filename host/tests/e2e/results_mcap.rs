@@ -69,6 +69,16 @@ fn assert_path(path: &Value, want: &[(f64, Isometry3<f64>)], what: &str) {
     }
 }
 
+/// Every pose of `estimate` moved by `map_from_estimate`, with its stamp.
+fn aligned(estimate: &Trajectory, map_from_estimate: &eval::Sim3) -> Vec<(f64, Isometry3<f64>)> {
+    estimate
+        .stamps
+        .iter()
+        .zip(&estimate.poses)
+        .map(|(&t, p)| (t, map_from_estimate.apply(p)))
+        .collect()
+}
+
 /// The alignment `metrics.json` names.
 fn alignment(name: &str) -> Alignment {
     match name {
@@ -179,12 +189,7 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
         "the recomputed APE ({} m) is the run's ({rmse} m)",
         ape.stats.rmse
     );
-    let aligned: Vec<(f64, Isometry3<f64>)> = estimate
-        .stamps
-        .iter()
-        .zip(&estimate.poses)
-        .map(|(&t, p)| (t, ape.transform.apply(p)))
-        .collect();
+    let aligned = aligned(&estimate, &ape.transform);
     assert_path(
         &summary["paths"]["/estimate/path"],
         &aligned,
@@ -368,12 +373,7 @@ fn results_mcap_draws_false_loops_red_and_leaves_out_an_absent_map() {
     );
     // The nearest estimated poses: 9.005 s and 1.005 s; 8.005 s (8.01 s is nearer it than
     // 8.105 s) and 2.005 s.
-    let aligned: Vec<(f64, Isometry3<f64>)> = estimate
-        .stamps
-        .iter()
-        .zip(&estimate.poses)
-        .map(|(&t, p)| (t, ape.transform.apply(p)))
-        .collect();
+    let aligned = aligned(&estimate, &ape.transform);
     let at = |k: usize| aligned[k].1.translation.vector;
     assert_markers(
         &summary,
