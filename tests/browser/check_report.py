@@ -8,15 +8,18 @@ level error (a resource that failed to load, for one), an <img> that did not loa
 (naturalWidth 0), an outermost inline <svg> whose getBBox is empty, and any request that is
 not file:, data:, blob: or about: (the report must be self-contained; Chromium runs with a
 host resolver that resolves no name, so such a request fails at once and sends nothing).
-Images with loading="lazy" are made eager first, as a reader scrolling down would load them.
+Images with loading="lazy" are made eager first, as a reader scrolling down would load them;
+folded <details> sections are opened for the checks (and left open for the screenshots with
+--open-details).
 Then writes a full-page screenshot (at most 16000 px high; the output says when cut) and
 one screenshot per --section-screenshot, clipped to the first element the selector matches.
 The screenshots are written even when a check fails, to look at what went wrong.
 
 Usage: check_report.py REPORT.html --screenshot OUT.png
-           [--section-screenshot CSS_SELECTOR OUT2.png]... [--chromium PATH] [--timeout S]
-(exit 0 and a JSON summary on stdout: images, svgs, console_errors, page_height_px,
-screenshots; exit 1 and one line per problem on stderr)
+           [--section-screenshot CSS_SELECTOR OUT2.png]... [--open-details]
+           [--chromium PATH] [--timeout S]
+(exit 0 and a JSON summary on stdout: images, svgs, folded_sections, console_errors,
+page_height_px, screenshots; exit 1 and one line per problem on stderr)
 """
 
 import argparse
@@ -51,12 +54,16 @@ CHROMIUM_FLAGS = [
 ]
 # Per image and per outermost inline svg, what the checks need; lazy images made eager.
 INSPECT_JS = """(async () => {
+  // Folded sections (<details>) opened, so that what they hold is laid out and checked;
+  // folded again at the end, as the reader finds the page.
+  const folded = [...document.querySelectorAll('details:not([open])')];
+  for (const d of folded) d.open = true;
   const imgs = [...document.images];
   for (const i of imgs) if (i.loading === 'lazy') i.loading = 'eager';
   await Promise.all(imgs.filter(i => !i.complete).map(i => new Promise(r => {
     i.addEventListener('load', r); i.addEventListener('error', r); setTimeout(r, 5000); })));
   const svgs = [...document.querySelectorAll('svg')].filter(s => !s.parentElement.closest('svg'));
-  return {
+  const found = {
     imgs: imgs.map(i => ({src: i.getAttribute('src') || '', alt: i.alt, complete: i.complete,
                           width: i.naturalWidth})),
     svgs: svgs.map((s, k) => {
@@ -66,7 +73,10 @@ INSPECT_JS = """(async () => {
       try { box = s.getBBox(); } catch (e) {}
       return {index: k, name: name.trim().slice(0, 80), width: box.width, height: box.height};
     }),
+    folded: folded.length,
   };
+  if (!OPEN_DETAILS) for (const d of folded) d.open = false;
+  return found;
 })()"""
 # The page rectangle of the first element a selector matches, scrolled into view.
 ELEMENT_BOX_JS = """(sel => {
@@ -235,7 +245,8 @@ def check(browser, port, report, args):
         if navigation.get("errorText"):
             raise Fatal(f"cannot open {report}: {navigation['errorText']}")
         page.wait_event("Page.loadEventFired", args.timeout)
-        found = page.evaluate(INSPECT_JS, timeout=args.timeout)
+        found = page.evaluate(INSPECT_JS.replace("OPEN_DETAILS", json.dumps(args.open_details)),
+                              timeout=args.timeout)
         problems = []
         for img in found["imgs"]:
             if not img["complete"] or img["width"] == 0:
@@ -268,6 +279,7 @@ def check(browser, port, report, args):
         summary = {
             "images": len(found["imgs"]),
             "svgs": len(found["svgs"]),
+            "folded_sections": found["folded"],
             "console_errors": sum(
                 e["method"] == "Runtime.consoleAPICalled"
                 and e["params"]["type"] in ("error", "assert") for e in page.events),
@@ -286,6 +298,8 @@ def main():
     parser.add_argument("--screenshot", required=True, metavar="OUT.png")
     parser.add_argument("--section-screenshot", nargs=2, action="append", default=[],
                         metavar=("CSS_SELECTOR", "OUT.png"))
+    parser.add_argument("--open-details", action="store_true",
+                        help="leave every folded <details> section open for the screenshots")
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     parser.add_argument("--timeout", type=float, default=60, help="seconds for the page to load")
     args = parser.parse_args()
