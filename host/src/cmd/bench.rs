@@ -92,5 +92,9 @@ pub fn report(plan: &Plan) -> anyhow::Result<crate::runner::Executed> {
     let executed = execute(plan)?;
     println!("{}", executed.table_markdown);
     println!("results: {}", executed.dir.display());
+    println!(
+        "report: {}",
+        executed.dir.join(crate::report::html::REPORT).display()
+    );
     Ok(executed)
 }

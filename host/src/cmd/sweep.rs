@@ -188,6 +188,10 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     aggregate::write(&agg, &out)?;
     println!("{}", aggregate::render_markdown(&agg));
     println!("results: {}", out.display());
+    println!(
+        "report: {}",
+        out.join(crate::report::html::REPORT).display()
+    );
     let missing = agg.missing();
     if missing > 0 && !args.collect {
         anyhow::bail!(

@@ -6,7 +6,7 @@
 //! - the paper's Table 2 layout with real-time factor and loops accepted / false, and the
 //!   failed runs with their reasons;
 //! - per scenario the top view of every system's aligned estimate over ground truth (the
-//!   paper's Fig. 3), accepted loops as segments, true in green and false in red;
+//!   paper's Fig. 3), accepted loops as segments, true thin grey, false wider red;
 //! - per system the map of the last scenario from above, coloured by height, with its
 //!   trajectory (the paper's Fig. 4), and its occupancy grid when it writes one;
 //! - per run (folded) the translation error against time, timing (real-time factors,
@@ -369,12 +369,28 @@ fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow::Result<Str
         return Ok("<p>No run of this scenario finished: nothing to draw.</p>\n".into());
     }
     let chart = scenario_chart(scenario, &truth, &tracks);
-    let n_loops: usize = loops.iter().map(Vec::len).sum();
+    let per_system: Vec<String> = runs
+        .iter()
+        .zip(&loops)
+        .filter(|(_, l)| !l.is_empty())
+        .map(|(r, l)| {
+            let false_ = l.iter().filter(|s| !s.true_loop).count();
+            format!("{} {} ({false_} false)", r.record.plugin, l.len())
+        })
+        .collect();
+    let loops_text = if per_system.is_empty() {
+        "no accepted loop closure to draw".to_owned()
+    } else {
+        format!(
+            "accepted loop closures drawn between the poses they join on the system's own estimate, grey if ground truth confirms them, red if not: {}",
+            per_system.join(", ")
+        )
+    };
     svg_figure(
         &chart,
         WIDTH_PX,
         &format!(
-            "Top view of every system's final estimate after alignment to ground truth (black); {n_loops} accepted loop closures drawn between the poses they join, green if ground truth confirms them, red if not."
+            "Top view of every system's final estimate after alignment to ground truth (black); {loops_text}."
         ),
     )
 }

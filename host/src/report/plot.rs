@@ -13,8 +13,10 @@ use super::{RunStatus, ScenarioTruth};
 pub(super) const WIDTH_PX: u32 = 1000;
 
 const GROUND_TRUTH: Rgb = [0, 0, 0];
-const TRUE_LOOP: Rgb = [0, 150, 60];
-const FALSE_LOOP: Rgb = [220, 0, 0];
+/// Loop closures: grey when true (thin, under the estimates' colours, none of which is
+/// grey), red and wider when false, so a false loop stands out.
+const TRUE_LOOP: Rgb = [110, 110, 110];
+const FALSE_LOOP: Rgb = [230, 0, 30];
 /// Okabe & Ito's colour-blind-safe palette (without black, which is the ground truth),
 /// yellow last as it is faint on white; plugin `i` gets colour `i % 7`.
 const PALETTE: [Rgb; 7] = [
@@ -56,7 +58,7 @@ pub struct Track<'a> {
 
 /// The paper's Fig. 3 for one scenario: ground truth in black (wide, so it shows as an
 /// outline where an estimate lies on it), every ok system's aligned estimate in its
-/// colour, accepted loops as thin segments (true in green, false in red), in metres with
+/// colour, accepted loops as segments (true thin grey, false wider red), in metres with
 /// equal scales; the legend names ground truth, every system (failed ones with their
 /// reason) and the loop colours when there are loops.
 pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) -> Chart {

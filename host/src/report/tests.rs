@@ -496,7 +496,7 @@ fn cut_routes_are_said_to_be_cut() {
 }
 
 #[test]
-fn loops_are_segments_green_when_true_and_red_when_false() {
+fn loops_are_segments_grey_when_true_and_red_when_false() {
     use super::plot::{LoopSegment, Track, scenario_chart};
     let truth: Vec<(f64, f64)> = (0..50).map(|i| (f64::from(i) * 0.2, 0.0)).collect();
     let loops = [
@@ -529,11 +529,11 @@ fn loops_are_segments_green_when_true_and_red_when_false() {
         },
     ];
     let svg = scenario_chart("s9", &truth, &tracks).to_svg(800).unwrap();
-    let segments = |colour: &str| {
-        svg.matches(&format!("stroke=\"{colour}\" stroke-width=\"1\""))
+    let segments = |colour: &str, width: u32| {
+        svg.matches(&format!("stroke=\"{colour}\" stroke-width=\"{width}\""))
             .count()
     };
-    assert_eq!((segments("#00963C"), segments("#DC0000")), (2, 1));
+    assert_eq!((segments("#6E6E6E", 1), segments("#E6001E", 2)), (2, 1));
     let texts = svg_texts(&svg);
     for label in [
         "true loop closures (2)",

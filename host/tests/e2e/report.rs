@@ -138,7 +138,7 @@ pub fn check_bench_report(out: &Path, min_images: u64) -> String {
 }
 
 /// A bench whose lio-sam closes loops (S1, 60 s, every registration accepted): the page's
-/// S1 plot draws one green segment per accepted loop that ground truth confirms and one
+/// S1 plot draws one grey segment per accepted loop that ground truth confirms and one
 /// red per false one, and the run lists each loop with its judgement.
 #[test]
 fn the_bench_report_draws_every_accepted_loop_and_renders_in_a_browser() {
@@ -164,19 +164,19 @@ fn the_bench_report_draws_every_accepted_loop_and_renders_in_a_browser() {
         .as_u64()
         .expect("accepted_false");
     assert!(accepted > 0, "lio-sam accepted no loop: nothing to draw");
-    // The S1 section's SVG: loops are 1 px segments in the loop colours (the legend's
-    // swatches are wider).
+    // The S1 section's SVG: loops are segments in the loop colours, true 1 px grey, false
+    // 2 px red (the legend's swatches are 3 px).
     let section = &page[page.find("id=\"scenario-s1\"").expect("s1 section")..];
     let section = &section[..section.find("</section>").expect("section end")];
-    let segments = |colour: &str| {
+    let segments = |colour: &str, width: u32| {
         section
-            .matches(&format!("stroke=\"{colour}\" stroke-width=\"1\""))
+            .matches(&format!("stroke=\"{colour}\" stroke-width=\"{width}\""))
             .count() as u64
     };
     assert_eq!(
-        (segments("#00963C"), segments("#DC0000")),
+        (segments("#6E6E6E", 1), segments("#E6001E", 2)),
         (accepted - false_loops, false_loops),
-        "green and red segments against {accepted} accepted, {false_loops} false loops"
+        "grey and red segments against {accepted} accepted, {false_loops} false loops"
     );
     let run = &page[page.find("id=\"run-s1-lio-sam\"").expect("lio-sam's run")..];
     let run = &run[..run.find("</details>\n</details>").unwrap_or(run.len())];
