@@ -1,4 +1,5 @@
-//! `report.html` from the outside: written by real benches and sweeps, it names every run
+//! `report.html` from the outside: written by real benches and sweeps (the paper test's,
+//! the faulty-plugin bench, the results.mcap test's bench with loops, a sweep), it names every run
 //! with the numbers of `table.json`, draws every accepted loop, and renders in a real
 //! browser (Debian's Chromium, headless, through tests/browser/check_report.py) without a
 //! console error, a broken image, an empty SVG or a request outside the page;
@@ -137,33 +138,37 @@ pub fn check_bench_report(out: &Path, min_images: u64) -> String {
     page
 }
 
-/// A bench whose lio-sam closes loops (S1, 60 s, every registration accepted): the page's
-/// S1 plot draws one grey segment per accepted loop that ground truth confirms and one
-/// red per false one, and the run lists each loop with its judgement.
-#[test]
-fn the_bench_report_draws_every_accepted_loop_and_renders_in_a_browser() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let file = tmp.path().join("loops.toml");
-    std::fs::write(
-        &file,
-        "scenarios = [\"s1\"]\nmax_time_s = 60.0\n\n[[plugins]]\nname = \"wheel-odometry\"\n\n[[plugins]]\nname = \"lio-sam\"\n[plugins.params.loop_closure]\nmin_age_s = 10.0\nmax_fitness = 1000.0\n",
-    )
-    .expect("bench file");
-    let out = tmp.path().join("loops");
-    let o = vinebench(&[
-        "bench",
-        file.to_str().expect("utf-8"),
-        "--out",
-        out.to_str().expect("utf-8"),
-    ]);
-    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
-    let page = check_bench_report(&out, 1);
-    let metrics = json(&out.join("s1/lio-sam/metrics.json"));
-    let accepted = metrics["loops"]["accepted"].as_u64().expect("accepted");
-    let false_loops = metrics["loops"]["accepted_false"]
-        .as_u64()
-        .expect("accepted_false");
-    assert!(accepted > 0, "lio-sam accepted no loop: nothing to draw");
+/// The report of a bench whose runs `labels` (on S1) closed loops: the S1 plot draws one
+/// grey segment per accepted loop that ground truth confirms and one red per false one,
+/// and each run lists its loops with their judgement; the page passes
+/// [`check_bench_report`]. Called by the results.mcap test, whose bench closes loops.
+pub fn check_bench_loops(out: &Path, labels: &[&str]) {
+    let page = check_bench_report(out, 1);
+    let (mut accepted, mut false_loops) = (0, 0);
+    for label in labels {
+        let metrics = json(&out.join("s1").join(label).join("metrics.json"));
+        let (a, f) = (
+            metrics["loops"]["accepted"].as_u64().expect("accepted"),
+            metrics["loops"]["accepted_false"]
+                .as_u64()
+                .expect("accepted_false"),
+        );
+        assert!(a > 0, "{label} accepted no loop: nothing to draw");
+        let run = &page[page
+            .find(&format!("id=\"run-s1-{label}\""))
+            .unwrap_or_else(|| panic!("{label}'s run"))..];
+        // Up to the next run's section.
+        let run = &run[..run[1..]
+            .find("<details id=\"run-")
+            .map_or(run.len(), |i| i + 1)];
+        let judged = run.matches("<span class=\"good\">true</span>").count()
+            + run.matches("<span class=\"bad\">false</span>").count();
+        assert_eq!(
+            judged as u64, a,
+            "{label}: one listed loop per accepted loop"
+        );
+        (accepted, false_loops) = (accepted + a, false_loops + f);
+    }
     // The S1 section's SVG: loops are segments in the loop colours, true 1 px grey, false
     // 2 px red (the legend's swatches are 3 px).
     let section = &page[page.find("id=\"scenario-s1\"").expect("s1 section")..];
@@ -178,11 +183,6 @@ fn the_bench_report_draws_every_accepted_loop_and_renders_in_a_browser() {
         (accepted - false_loops, false_loops),
         "grey and red segments against {accepted} accepted, {false_loops} false loops"
     );
-    let run = &page[page.find("id=\"run-s1-lio-sam\"").expect("lio-sam's run")..];
-    let run = &run[..run.find("</details>\n</details>").unwrap_or(run.len())];
-    let judged = run.matches("<span class=\"good\">true</span>").count()
-        + run.matches("<span class=\"bad\">false</span>").count();
-    assert_eq!(judged as u64, accepted, "one listed loop per accepted loop");
     eprintln!(
         "report: {} bytes, {accepted} loops ({false_loops} false)",
         page.len()

@@ -16,7 +16,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde_json::Value;
 use vinebench::dataset::{JudgedLoop, RunResults, write_results};
 
-use crate::common::{json, loop_events, mcap_check, run_with};
+use crate::common::{json, loop_events, mcap_check, run_together};
 
 /// Loop closure on a 60 s stretch of S1 (down the row and into the headland): candidates
 /// 10 s old or more, every registration accepted, so loops close on the way down and the
@@ -141,17 +141,26 @@ fn ply_vertices(path: &Path) -> (usize, [f32; 3]) {
     (n, first)
 }
 
-/// Guards results.mcap as `vinebench run` writes it for lio-sam on 60 s of S1 (loops and a
-/// map): the ground-truth path is groundtruth.tum; the estimate path is estimate.tum aligned
-/// by the transform the run's APE used (recomputed here with `eval`, the same rmse as
+/// Guards results.mcap as a bench writes it for lio-sam on 60 s of S1 (loops and a map):
+/// the ground-truth path is groundtruth.tum; the estimate path is estimate.tum aligned by
+/// the transform the run's APE used (recomputed here with `eval`, the same rmse as
 /// metrics.json), in the metadata too; each loop marker joins the aligned poses nearest its
 /// stamps and the markers count as metrics.json's loops; the map has map.ply's points,
-/// aligned; the same run gives the same bytes and no temporary file.
+/// aligned; a second run of the same bench gives the same bytes and no temporary file is
+/// left. The same bench's report.html draws every loop (`crate::report`).
 #[test]
 fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
     let dir = tempfile::tempdir().expect("temp dir");
     let extra = ["--max-time", MAX_TIME];
-    let folder = run_with(dir.path(), "s1", "lio-sam", "a", LOOSE_LOOPS, &extra);
+    // Two identical runs fed by one simulation: the second checks determinism.
+    let folders = run_together(
+        dir.path(),
+        "s1",
+        "lio-sam",
+        &[("a", LOOSE_LOOPS), ("b", LOOSE_LOOPS)],
+        &extra,
+    );
+    let (folder, again) = (&folders[0], &folders[1]);
     let results = folder.join("results.mcap");
     let summary = mcap_check(
         "check_results.py",
@@ -221,7 +230,7 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
     assert_eq!(parse("alignment_translation_m"), [t.x, t.y, t.z], "{meta}");
 
     // Loops: one marker per accepted loop, in the plugin's order, the false ones red.
-    let accepted = loop_events(&folder, "loop_closure_accepted");
+    let accepted = loop_events(folder, "loop_closure_accepted");
     let loops = &metrics["loops"];
     assert!(
         !accepted.is_empty(),
@@ -279,7 +288,6 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
     );
 
     // Deterministic, and nothing half-written left behind.
-    let again = run_with(dir.path(), "s1", "lio-sam", "b", LOOSE_LOOPS, &extra);
     let (a, b) = (
         std::fs::read(&results).expect("results.mcap"),
         std::fs::read(again.join("results.mcap")).expect("results.mcap"),
@@ -290,7 +298,7 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
         a.len(),
         b.len()
     );
-    let stray: Vec<String> = std::fs::read_dir(&folder)
+    let stray: Vec<String> = std::fs::read_dir(folder)
         .expect("run folder")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
         .filter(|n| n.contains("tmp"))
@@ -301,6 +309,11 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
         a.len(),
         accepted.len()
     );
+    let bench = folder
+        .parent()
+        .and_then(Path::parent)
+        .expect("the bench folder");
+    crate::report::check_bench_loops(bench, &["a", "b"]);
 }
 
 /// A made-up run: ground truth along x at 10 Hz for 10 s, the estimate the same path turned
