@@ -528,7 +528,7 @@ fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
 
 /// The page of a sweep from its aggregate and plots.
 pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyhow::Result<String> {
-    use crate::sweep::aggregate::{ate_chart, failure_lines, pm};
+    use crate::sweep::aggregate::{ate_chart, failure_lines, row_cells};
     let mut body = String::new();
     let _ = writeln!(body, "<h1>vinebench sweep: {}</h1>", esc(name));
     let seeds: Vec<String> = agg.seeds.iter().map(u64::to_string).collect();
@@ -579,21 +579,10 @@ pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyho
             for (_, v) in &row.axes {
                 let _ = write!(body, "<td>{}</td>", esc(v));
             }
-            let _ = writeln!(
-                body,
-                "<td>{} / {} / {}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                row.n_ok,
-                row.n_failed,
-                row.n_missing,
-                pm(row.ate_rmse_m, 3),
-                row.ate_rmse_m
-                    .map_or("–".into(), |s| format!("{:.3}", s.min)),
-                row.ate_rmse_m
-                    .map_or("–".into(), |s| format!("{:.3}", s.max)),
-                pm(row.loops_accepted, 1),
-                pm(row.loops_false, 1),
-                pm(row.speed.realtime_factor, 1)
-            );
+            for cell in row_cells(row) {
+                let _ = write!(body, "<td>{}</td>", esc(&cell));
+            }
+            body.push_str("</tr>\n");
         }
         body.push_str("</table></div>\n");
         for (k, (path, values)) in agg.axes.iter().enumerate() {

@@ -293,6 +293,25 @@ pub fn render_speed_csv(agg: &Aggregate) -> String {
     )
 }
 
+/// A row's cells after its axis values, as `sweep.md` and the sweep's page show them:
+/// runs ok / failed / missing, ATE RMSE mean ± std, min, max, loops accepted, false
+/// loops, RTF.
+pub fn row_cells(row: &Row) -> [String; 7] {
+    let ate = |f: fn(&Summary) -> f64| {
+        row.ate_rmse_m
+            .map_or("–".into(), |s| format!("{:.3}", f(&s)))
+    };
+    [
+        format!("{} / {} / {}", row.n_ok, row.n_failed, row.n_missing),
+        pm(row.ate_rmse_m, 3),
+        ate(|s| s.min),
+        ate(|s| s.max),
+        pm(row.loops_accepted, 1),
+        pm(row.loops_false, 1),
+        pm(row.speed.realtime_factor, 1),
+    ]
+}
+
 /// Each failed run as `scenario system key=value…: seed s: reason`.
 pub fn failure_lines(agg: &Aggregate) -> Vec<String> {
     agg.rows
@@ -357,21 +376,7 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             for (_, v) in &row.axes {
                 line += &format!(" {v} |");
             }
-            let _ = writeln!(
-                md,
-                "{line} {} / {} / {} | {} | {} | {} | {} | {} | {} |",
-                row.n_ok,
-                row.n_failed,
-                row.n_missing,
-                pm(row.ate_rmse_m, 3),
-                row.ate_rmse_m
-                    .map_or("–".into(), |s| format!("{:.3}", s.min)),
-                row.ate_rmse_m
-                    .map_or("–".into(), |s| format!("{:.3}", s.max)),
-                pm(row.loops_accepted, 1),
-                pm(row.loops_false, 1),
-                pm(row.speed.realtime_factor, 1),
-            );
+            let _ = writeln!(md, "{line} {} |", row_cells(row).join(" | "));
         }
         md.push('\n');
         for (path, values) in &agg.axes {
