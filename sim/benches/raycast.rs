@@ -1,6 +1,5 @@
 //! Ray-casting and lidar throughput on the default vineyard (growth stage 3, ~77k
-//! triangles): rays/s of one thread for the BVH (alone, and seeded with the previous
-//! column's hits as the lidar casts), for Intel's Embree 3 (single rays, and fans of a column
+//! triangles): rays/s of one thread for the BVH, for Intel's Embree 3 (single rays, and fans of a column
 //! in packets of 4, 8 and 16; feature `embree`) and for parry3d, and VLP-16 scans/s of the
 //! full sensor model (all cores). Run: `cargo bench -p vinebench-sim --bench raycast`.
 
@@ -31,23 +30,6 @@ fn sweep(
     out.iter().filter(|h| h.is_some()).count()
 }
 
-/// [`sweep`] with every column's rays seeded with the previous column's hits, as
-/// `LidarSensor` does (the answers are the same).
-fn sweep_guessed(
-    caster: &dyn RayCaster,
-    origin: &Point3<f32>,
-    dirs: &[Vector3<f32>],
-    out: &mut [Option<Hit>],
-) -> usize {
-    let mut previous = [None; 16];
-    for (d, o) in dirs.chunks(16).zip(out.chunks_mut(16)) {
-        o.copy_from_slice(&previous);
-        caster.cast_fan_guessed(origin, d, 0.9, 130.0, o);
-        previous.copy_from_slice(o);
-    }
-    out.iter().filter(|h| h.is_some()).count()
-}
-
 fn benches(c: &mut Criterion) {
     let cfg = SimConfig::default();
     let sim = Simulation::new(&cfg, "s3", 0).expect("s3 builds");
@@ -64,10 +46,6 @@ fn benches(c: &mut Criterion) {
     let bvh = Bvh::build(mesh);
     group.bench_function("bvh", |b| {
         b.iter(|| black_box(sweep(&bvh, &origin, &dirs, &mut out)))
-    });
-    // As the lidar casts: each beam seeded with its hit in the previous column.
-    group.bench_function("bvh_guessed", |b| {
-        b.iter(|| black_box(sweep_guessed(&bvh, &origin, &dirs, &mut out)))
     });
     // Embree as `raycaster = "embree"` builds it (spatial-split SAH on one thread), the same
     // rays and range gate: one rtcIntersect1 per ray, then each column in packets.

@@ -93,10 +93,8 @@ impl RayCaster for EmbreeCaster {
             .map(|h| self.hit(h))
     }
 
-    /// Fans go to Embree as the caster was built to send them ([`FAN_PACKET`] by default);
-    /// the guesses in `out` are not used
-    /// (Embree has no way to start from one), so this is also what `cast_fan` runs.
-    fn cast_fan_guessed(
+    /// Fans go to Embree as the caster was built to send them ([`FAN_PACKET`] by default).
+    fn cast_fan(
         &self,
         origin: &Point3<f32>,
         dirs: &[Vector3<f32>],
@@ -106,7 +104,7 @@ impl RayCaster for EmbreeCaster {
     ) {
         assert!(
             out.len() >= dirs.len(),
-            "cast_fan_guessed: `out` shorter than `dirs`"
+            "cast_fan: `out` shorter than `dirs`"
         );
         const CHUNK: usize = 16;
         let mut d = [[0.0f32; 3]; CHUNK];

@@ -53,42 +53,8 @@ pub trait RayCaster: Send + Sync + std::fmt::Debug {
     fn cast(&self, origin: &Point3<f32>, dir: &Vector3<f32>, t_min: f32, t_max: f32)
     -> Option<Hit>;
 
-    /// [`Self::cast`] given a guess of the answer (for a lidar, the hit of the same beam in
-    /// the neighbouring column): the answer is exactly `cast`'s whatever the guess; a good
-    /// one only makes it faster. The default ignores the guess.
-    fn cast_guessed(
-        &self,
-        origin: &Point3<f32>,
-        dir: &Vector3<f32>,
-        t_min: f32,
-        t_max: f32,
-        guess: Option<Hit>,
-    ) -> Option<Hit> {
-        let _ = guess;
-        self.cast(origin, dir, t_min, t_max)
-    }
-
-    /// [`Self::cast_fan`] with `out[i]` holding, on entry, a guess of `dirs[i]`'s hit, as
-    /// [`Self::cast_guessed`] takes it: the answers are exactly `cast_fan`'s.
-    fn cast_fan_guessed(
-        &self,
-        origin: &Point3<f32>,
-        dirs: &[Vector3<f32>],
-        t_min: f32,
-        t_max: f32,
-        out: &mut [Option<Hit>],
-    ) {
-        assert!(
-            out.len() >= dirs.len(),
-            "cast_fan_guessed: `out` shorter than `dirs`"
-        );
-        for (slot, dir) in out.iter_mut().zip(dirs) {
-            *slot = self.cast_guessed(origin, dir, t_min, t_max, *slot);
-        }
-    }
-
-    /// Many rays from ONE origin (a lidar column / a scan): fills `out[i]` for `dirs[i]`;
-    /// [`Self::cast_fan_guessed`] with no guesses.
+    /// Many rays from ONE origin (a lidar column, a scan): fills `out[i]` for `dirs[i]`,
+    /// exactly as [`Self::cast`] would, ray by ray. The default casts them one at a time.
     ///
     /// Panics if `out` is shorter than `dirs`.
     fn cast_fan(
@@ -99,8 +65,12 @@ pub trait RayCaster: Send + Sync + std::fmt::Debug {
         t_max: f32,
         out: &mut [Option<Hit>],
     ) {
-        let n = dirs.len().min(out.len());
-        out[..n].fill(None);
-        self.cast_fan_guessed(origin, dirs, t_min, t_max, out);
+        assert!(
+            out.len() >= dirs.len(),
+            "cast_fan: `out` shorter than `dirs`"
+        );
+        for (slot, dir) in out.iter_mut().zip(dirs) {
+            *slot = self.cast(origin, dir, t_min, t_max);
+        }
     }
 }

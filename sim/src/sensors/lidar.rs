@@ -81,24 +81,29 @@ impl LidarSensor {
     /// `world_from_lidar` at each column's firing time of the sweep starting at `stamp_ns`.
     pub fn column_poses(&self, scene: &Scene<'_>, stamp_ns: i64) -> Vec<Isometry3<f64>> {
         (0..self.cfg.columns)
+            .into_par_iter()
             .map(|c| {
                 scene.trajectory.pose(stamp_ns + self.column_offset_ns(c)) * self.base_from_lidar
             })
             .collect()
     }
 
-    /// Casts every beam of the sweep from its column's pose; `hits[c * rings + r]`.
-    pub fn cast_sweep(&self, scene: &Scene<'_>, poses: &[Isometry3<f64>]) -> Vec<Option<Hit>> {
+    /// Casts every beam of the sweep from its column's pose: `hits[c * rings + r]`, with the
+    /// cosine of the angle between the beam and the surface hit.
+    pub fn cast_sweep(
+        &self,
+        scene: &Scene<'_>,
+        poses: &[Isometry3<f64>],
+    ) -> Vec<Option<(Hit, f32)>> {
         let rings = self.cfg.rings;
         let (t_min, t_max) = (self.cfg.min_range_m as f32, self.cfg.max_range_m as f32);
+        let mesh = &scene.world.mesh;
         let mut hits = vec![None; self.directions.len()];
         hits.par_chunks_mut(COLUMNS_PER_TASK * rings)
             .enumerate()
             .for_each(|(task, out)| {
                 let mut world_dirs = vec![Vector3::zeros(); rings];
-                // Each beam's hit in the previous column (0.2° away): usually the same
-                // triangle, it seeds the search (the hits are the same without it).
-                let mut previous = vec![None; rings];
+                let mut column_hits = vec![None; rings];
                 for (j, column_out) in out.chunks_mut(rings).enumerate() {
                     let c = task * COLUMNS_PER_TASK + j;
                     let world_from_lidar = &poses[c];
@@ -109,17 +114,22 @@ impl LidarSensor {
                         .to_rotation_matrix()
                         .into_inner()
                         .cast::<f32>();
-                    for (w, d) in world_dirs
-                        .iter_mut()
-                        .zip(&self.directions[c * rings..(c + 1) * rings])
-                    {
+                    let beams = &self.directions[c * rings..(c + 1) * rings];
+                    for (w, d) in world_dirs.iter_mut().zip(beams) {
                         *w = rot * d;
                     }
-                    column_out.copy_from_slice(&previous);
                     scene
                         .caster
-                        .cast_fan_guessed(&origin, &world_dirs, t_min, t_max, column_out);
-                    previous.copy_from_slice(column_out);
+                        .cast_fan(&origin, &world_dirs, t_min, t_max, &mut column_hits);
+                    // The incidence of each hit (for its intensity), here where it runs in
+                    // parallel rather than with the noise, which must be drawn in order.
+                    for ((slot, hit), d) in column_out.iter_mut().zip(&column_hits).zip(beams) {
+                        *slot = hit.map(|h| {
+                            let world_dir =
+                                (world_from_lidar.rotation * d.cast::<f64>()).cast::<f32>();
+                            (h, mesh.normal(h.triangle as usize).dot(&world_dir).abs())
+                        });
+                    }
                 }
             });
         hits
@@ -143,7 +153,9 @@ impl Sensor for LidarSensor {
         let mesh = &scene.world.mesh;
         let mut points = Vec::with_capacity(hits.len());
         for (i, hit) in hits.iter().enumerate() {
-            let Some(hit) = hit else { continue };
+            let Some((hit, cos_incidence)) = hit else {
+                continue;
+            };
             let (c, ring) = (i / rings, i % rings);
             let dir = self.directions[i];
             let range = if noisy {
@@ -155,8 +167,6 @@ impl Sensor for LidarSensor {
                 continue;
             }
             let tri = hit.triangle as usize;
-            let world_dir = (poses[c].rotation * dir.cast::<f64>()).cast::<f32>();
-            let cos_incidence = mesh.normal(tri).dot(&world_dir).abs();
             let p = dir * range;
             points.push(LidarPoint {
                 x: p.x,

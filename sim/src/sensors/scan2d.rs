@@ -82,14 +82,9 @@ impl Sensor for Scan2dSensor {
         hits.par_chunks_mut(SAMPLES_PER_TASK)
             .enumerate()
             .for_each(|(task, out)| {
-                // The previous sample's hit seeds the search (the hits are the same without).
-                let mut previous = None;
                 for (j, slot) in out.iter_mut().enumerate() {
                     let (origin, dir) = self.ray(scene, stamp_ns, task * SAMPLES_PER_TASK + j);
-                    let hit = scene
-                        .caster
-                        .cast_guessed(&origin, &dir, t_min, t_max, previous);
-                    previous = hit;
+                    let hit = scene.caster.cast(&origin, &dir, t_min, t_max);
                     *slot = hit.map(|h| (h, mesh.normal(h.triangle as usize).dot(&dir).abs()));
                 }
             });

@@ -44,7 +44,6 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
             nodes: Vec::new(),
             triangles: Vec::new(),
             ids: Vec::new(),
-            slots: Vec::new(),
             depth: 0,
         };
     }
@@ -52,16 +51,11 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
     let (root, pairs) = subtree(&prims, &mut order, 0, 0);
     let (nodes, depth) = collapse::collapse(&root, &pairs);
     let ids: Vec<u32> = order.iter().map(|&k| ids[k as usize]).collect();
-    let mut slots = vec![u32::MAX; mesh.triangles.len()];
-    for (slot, &id) in ids.iter().enumerate() {
-        slots[id as usize] = u32::try_from(slot).expect("fewer triangles than u32::MAX");
-    }
     Bvh {
         nodes,
         depth,
         triangles: order.iter().map(|&k| tris[k as usize]).collect(),
         ids,
-        slots,
     }
 }
 

@@ -13,10 +13,12 @@
 //! node; exact, and still 1.7x slower over a whole sweep: with baseline x86-64's 4-wide SSE,
 //! testing every box against every ray costs more than the node fetches it saves), two rays of a fan
 //! interleaved step by step (no gain: more branch mispredictions). SAH bins (16 or 32) and
-//! leaf sizes (4 or 8) made no difference beyond noise. Kept: a lidar beam's traversal may
-//! start from its hit in the previous column ([`RayCaster::cast_guessed`]): when the ray
-//! hits that triangle again, every node entered beyond it is skipped from the start; the
-//! answer is the same, and a sweep about 4% faster.
+//! leaf sizes (4 or 8) made no difference beyond noise, nor did building for x86-64-v3
+//! (AVX2). Also taken out: starting a lidar beam's traversal from its hit in the previous
+//! column (exact, since the closest hit is unique under the tie rule; but in criterion a
+//! sweep seeded so was 4–8% slower than one without, in every paired run: the guessed
+//! triangle's lookup costs two cache misses, and nearest-first traversal finds that hit
+//! early anyway).
 
 pub(crate) mod build;
 mod collapse;
@@ -42,8 +44,6 @@ pub struct Bvh {
     triangles: Vec<Triangle>,
     /// Mesh index of each entry of `triangles`.
     ids: Vec<u32>,
-    /// Entry of `triangles` of each mesh index; `u32::MAX` for a degenerate triangle.
-    slots: Vec<u32>,
     /// Levels of wide nodes.
     depth: usize,
 }
@@ -107,18 +107,6 @@ impl std::fmt::Debug for Bvh {
     }
 }
 
-impl Bvh {
-    /// The guessed triangle's hit, if the ray hits it within `[t_min, t_max]`: a seed for
-    /// the traversal. Computed with the very test the traversal uses, so the same bits.
-    #[inline(always)]
-    fn seed(&self, ray: &Ray, t_min: f32, t_max: f32, guess: Option<Hit>) -> Option<Hit> {
-        let id = guess?.triangle;
-        let slot = *self.slots.get(id as usize)?;
-        let t = self.triangles.get(slot as usize)?.intersect(ray)?;
-        (t >= t_min && t <= t_max).then_some(Hit { t, triangle: id })
-    }
-}
-
 impl RayCaster for Bvh {
     fn cast(
         &self,
@@ -128,29 +116,13 @@ impl RayCaster for Bvh {
         t_max: f32,
     ) -> Option<Hit> {
         let ray = Ray::new(origin, dir);
-        self.with_stack(|stack| traverse::closest(self, ray, t_min, t_max, None, stack))
+        self.with_stack(|stack| traverse::closest(self, ray, t_min, t_max, stack))
     }
 
-    /// Tests the guessed triangle first: when the ray hits it, every node entered beyond
-    /// that hit is skipped from the start.
-    fn cast_guessed(
-        &self,
-        origin: &Point3<f32>,
-        dir: &Vector3<f32>,
-        t_min: f32,
-        t_max: f32,
-        guess: Option<Hit>,
-    ) -> Option<Hit> {
-        let ray = Ray::new(origin, dir);
-        let seed = self.seed(&ray, t_min, t_max, guess);
-        self.with_stack(|stack| traverse::closest(self, ray, t_min, t_max, seed, stack))
-    }
-
-    /// Same answers as [`Bvh::cast_guessed`] ray by ray, with one traversal stack for the
-    /// whole fan (`cast_fan` comes here with no guesses). Consecutive directions that are
-    /// close (one laser ring at a time rather than one column) share more of the tree in
-    /// cache and run about 10% faster.
-    fn cast_fan_guessed(
+    /// Same answers as [`Bvh::cast`] ray by ray, with one traversal stack for the whole fan.
+    /// Consecutive directions that are close (one laser ring at a time rather than one
+    /// column) share more of the tree in cache and run about 10% faster.
+    fn cast_fan(
         &self,
         origin: &Point3<f32>,
         dirs: &[Vector3<f32>],
@@ -160,14 +132,11 @@ impl RayCaster for Bvh {
     ) {
         assert!(
             out.len() >= dirs.len(),
-            "cast_fan_guessed: `out` shorter than `dirs`"
+            "cast_fan: `out` shorter than `dirs`"
         );
-        let out = &mut out[..dirs.len()];
         self.with_stack(|stack| {
             for (slot, dir) in out.iter_mut().zip(dirs) {
-                let ray = Ray::new(origin, dir);
-                let seed = self.seed(&ray, t_min, t_max, *slot);
-                *slot = traverse::closest(self, ray, t_min, t_max, seed, stack);
+                *slot = traverse::closest(self, Ray::new(origin, dir), t_min, t_max, stack);
             }
         });
     }

@@ -32,23 +32,15 @@ pub(super) struct Walker<'s> {
 }
 
 impl<'s> Walker<'s> {
-    /// A traversal whose best hit so far is `seed` (a hit in `[t_min, t_max]`), if any.
-    pub fn new(
-        bvh: &Bvh,
-        ray: Ray,
-        t_min: f32,
-        t_max: f32,
-        seed: Option<Hit>,
-        stack: &'s mut [Entry],
-    ) -> Self {
+    /// A traversal with no hit yet.
+    pub fn new(bvh: &Bvh, ray: Ray, t_min: f32, t_max: f32, stack: &'s mut [Entry]) -> Self {
         let start = !bvh.nodes.is_empty() && t_min <= t_max;
-        let (best_t, best_id) = seed.map_or((t_max, u32::MAX), |h| (h.t, h.triangle));
         Self {
             neg: [ray.inv_d[0] < 0.0, ray.inv_d[1] < 0.0, ray.inv_d[2] < 0.0],
             ray,
             t_min,
-            best_t,
-            best_id,
+            best_t: t_max,
+            best_id: u32::MAX,
             current: start.then_some(0),
             stack,
             sp: 0,
@@ -157,18 +149,15 @@ impl<'s> Walker<'s> {
     }
 }
 
-/// Closest hit of one ray, starting from the hit `seed` if there is one: any node the ray
-/// enters beyond it is skipped from the start, and the answer is the same as without it
-/// (the closest hit is unique under the tie rule, and the seed is a hit).
+/// Closest hit of one ray (smallest `t` in `[t_min, t_max]`, ties to the smaller index).
 pub(super) fn closest(
     bvh: &Bvh,
     ray: Ray,
     t_min: f32,
     t_max: f32,
-    seed: Option<Hit>,
     stack: &mut [Entry],
 ) -> Option<Hit> {
-    let mut walker = Walker::new(bvh, ray, t_min, t_max, seed, stack);
+    let mut walker = Walker::new(bvh, ray, t_min, t_max, stack);
     while walker.step(bvh) {}
     walker.hit()
 }
