@@ -19,6 +19,7 @@
 //! messages ahead of each.
 
 use std::io::{BufReader, BufWriter, Read, Write};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -452,17 +453,48 @@ struct Lane {
     queue: Option<SyncSender<Arc<Vec<u8>>>>,
     sent: usize,
     outcome: Option<Delivery>,
+    /// Since when its writer has been blocked writing to the worker: nanoseconds after
+    /// `epoch`, plus one (0: not writing).
+    writing: Arc<AtomicU64>,
+    epoch: Instant,
 }
 
-/// Writes frames from `queue` to `out`, flushing whenever the queue runs dry; returns
-/// whether everything was written.
-fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>) -> bool {
+impl Lane {
+    /// How long its writer has been blocked writing to a worker that does not read (zero
+    /// while it writes nothing or waits for frames).
+    fn stuck(&self) -> Duration {
+        match self.writing.load(Ordering::Relaxed) {
+            0 => Duration::ZERO,
+            since => self
+                .epoch
+                .elapsed()
+                .saturating_sub(Duration::from_nanos(since - 1)),
+        }
+    }
+}
+
+/// Runs `write` with `writing` holding its start (see [`Lane::writing`]).
+fn timed<T>((writing, epoch): (&AtomicU64, Instant), write: impl FnOnce() -> T) -> T {
+    let ns = u64::try_from(epoch.elapsed().as_nanos()).unwrap_or(u64::MAX - 1);
+    writing.store(ns + 1, Ordering::Relaxed);
+    let result = write();
+    writing.store(0, Ordering::Relaxed);
+    result
+}
+
+/// Writes frames from `queue` to `out`, flushing whenever the queue runs dry, and notes
+/// in `writing` when it is blocked; returns whether everything was written.
+fn write_lane(
+    mut out: impl Write,
+    queue: &Receiver<Arc<Vec<u8>>>,
+    clock: (&AtomicU64, Instant),
+) -> bool {
     let mut out = BufWriter::with_capacity(1 << 16, &mut out);
     loop {
         let frame = match queue.try_recv() {
             Ok(f) => f,
             Err(std::sync::mpsc::TryRecvError::Empty) => {
-                if out.flush().is_err() {
+                if timed(clock, || out.flush()).is_err() {
                     return false;
                 }
                 match queue.recv() {
@@ -472,7 +504,7 @@ fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>) -> bool {
             }
             Err(std::sync::mpsc::TryRecvError::Disconnected) => break,
         };
-        if out.write_all(&frame).is_err() {
+        if timed(clock, || out.write_all(&frame)).is_err() {
             return false;
         }
     }
@@ -491,16 +523,21 @@ impl Feed {
         let sensors = union(&subscribers.iter().map(|s| s.sensors).collect::<Vec<_>>());
         std::thread::scope(|scope| {
             let mut lanes = Vec::new();
+            let epoch = Instant::now();
             for sub in subscribers {
                 let (tx, rx) = sync_channel::<Arc<Vec<u8>>>(AHEAD);
                 let input = sub.input;
-                let writer = scope.spawn(move || write_lane(input, &rx));
+                let writing = Arc::new(AtomicU64::new(0));
+                let clock = Arc::clone(&writing);
+                let writer = scope.spawn(move || write_lane(input, &rx, (&clock, epoch)));
                 lanes.push((
                     Lane {
                         sensors: sub.sensors,
                         queue: Some(tx),
                         sent: 0,
                         outcome: None,
+                        writing,
+                        epoch,
                     },
                     writer,
                 ));
@@ -517,22 +554,27 @@ impl Feed {
             });
             for message in sim_rx {
                 let frame = Arc::new(encode(&message));
-                for (lane, _) in &mut lanes {
-                    if wants(&lane.sensors, &message) {
-                        self.offer(lane, &frame);
-                    }
-                }
+                self.offer(
+                    lanes
+                        .iter_mut()
+                        .map(|(lane, _)| lane)
+                        .filter(|lane| wants(&lane.sensors, &message))
+                        .collect(),
+                    &frame,
+                );
                 if lanes.iter().all(|(l, _)| l.queue.is_none()) {
                     break;
                 }
             }
             let simulated = producer.join().is_ok();
-            let end = Arc::new(end_frame());
+            if simulated {
+                self.offer(
+                    lanes.iter_mut().map(|(lane, _)| lane).collect(),
+                    &Arc::new(end_frame()),
+                );
+            }
             let mut outcomes = Vec::new();
             for (mut lane, writer) in lanes {
-                if simulated && lane.queue.is_some() {
-                    self.offer(&mut lane, &end);
-                }
                 let sent = lane.sent;
                 lane.queue = None;
                 let written = writer.join().unwrap_or(false);
@@ -550,37 +592,42 @@ impl Feed {
         })
     }
 
-    /// Queues a frame for a lane, waiting while its queue is full; a lane whose worker is
-    /// gone or stalled is closed.
-    fn offer(&self, lane: &mut Lane, frame: &Arc<Vec<u8>>) {
-        let Some(queue) = &lane.queue else { return };
-        let mut frame = Arc::clone(frame);
-        let mut since: Option<Instant> = None;
+    /// Queues a frame for each of `lanes`, waiting while their queues are full; a lane whose
+    /// worker is gone is closed, and one whose writer has been blocked writing to its worker
+    /// for the stall time is cut off. Each lane's stall is timed from when its own worker
+    /// stopped reading, so workers that hang at the same time cost their group one stall,
+    /// not one each.
+    fn offer(&self, mut lanes: Vec<&mut Lane>, frame: &Arc<Vec<u8>>) {
         let mut nap = Duration::from_micros(50);
         loop {
-            match queue.try_send(frame) {
-                Ok(()) => {
-                    lane.sent += 1;
-                    return;
-                }
-                Err(TrySendError::Disconnected(_)) => {
-                    lane.outcome = Some(Delivery::Closed { sent: lane.sent });
-                    lane.queue = None;
-                    return;
-                }
-                Err(TrySendError::Full(f)) => {
-                    let waiting = since.get_or_insert_with(Instant::now);
-                    if waiting.elapsed() > self.stall {
+            lanes.retain_mut(|lane| {
+                let Some(queue) = &lane.queue else {
+                    return false;
+                };
+                match queue.try_send(Arc::clone(frame)) {
+                    Ok(()) => {
+                        lane.sent += 1;
+                        false
+                    }
+                    Err(TrySendError::Disconnected(_)) => {
+                        lane.outcome = Some(Delivery::Closed { sent: lane.sent });
+                        lane.queue = None;
+                        false
+                    }
+                    Err(TrySendError::Full(_)) if lane.stuck() > self.stall => {
                         lane.outcome = Some(Delivery::Stalled { sent: lane.sent });
                         lane.queue = None;
-                        return;
+                        false
                     }
-                    frame = f;
-                    // Back off from 50 µs to 2 ms: prompt for a fast worker, idle for a slow one.
-                    std::thread::sleep(nap);
-                    nap = (nap * 2).min(Duration::from_millis(2));
+                    Err(TrySendError::Full(_)) => true,
                 }
+            });
+            if lanes.is_empty() {
+                return;
             }
+            // Back off from 50 µs to 2 ms: prompt for a fast worker, idle for a slow one.
+            std::thread::sleep(nap);
+            nap = (nap * 2).min(Duration::from_millis(2));
         }
     }
 }
@@ -719,5 +766,66 @@ mod tests {
             "b got exactly its own simulation's stream"
         );
         assert!(a.iter().any(|m| matches!(m, Message::Imu(_))));
+    }
+    /// Two workers that stop reading at the same time cost the group one stall, not one
+    /// each: a healthy worker beside them gets its whole stream about one stall time after
+    /// they hang (waiting for them one after the other would take two).
+    #[test]
+    fn workers_hung_together_cost_one_stall() {
+        let config = sim::SimConfig::default();
+        let sim = Simulation::new(&config, "s0", 3).expect("s0");
+        let imu = SensorSet {
+            ground_truth: true,
+            imu: true,
+            ..SensorSet::default()
+        };
+        let stall = Duration::from_secs(3);
+        let feed = Feed {
+            // 20 s of IMU and ground truth: more than a socket's buffer and a lane's queue.
+            end_ns: Some(20_000_000_000),
+            stall,
+        };
+        let pipe = || std::os::unix::net::UnixStream::pair().expect("socket pair");
+        let (healthy_write, healthy_read) = pipe();
+        let started = Instant::now();
+        let healthy = std::thread::spawn(move || {
+            let n = FeedReader::new(healthy_read).count();
+            (n, started.elapsed())
+        });
+        let mut subscribers = vec![Subscriber {
+            sensors: imu,
+            input: healthy_write,
+        }];
+        let mut hung = Vec::new();
+        for _ in 0..2 {
+            let (write, read) = pipe();
+            subscribers.push(Subscriber {
+                sensors: imu,
+                input: write,
+            });
+            // Never reads; dies (as its timeout would kill it) long after a stall.
+            hung.push(std::thread::spawn(move || {
+                std::thread::sleep(stall * 3);
+                drop(read);
+            }));
+        }
+        let outcomes = feed.run(&sim, subscribers).expect("simulates");
+        let (n, took) = healthy.join().expect("healthy reader");
+        hung.into_iter()
+            .for_each(|h| h.join().expect("hung reader"));
+        assert_eq!(outcomes[0], Delivery::Complete);
+        for o in &outcomes[1..] {
+            assert!(matches!(o, Delivery::Stalled { .. }), "{o:?}");
+        }
+        let own = sim
+            .stream(imu)
+            .take_while(|m| m.stamp_ns() <= 20_000_000_000)
+            .count();
+        assert_eq!(n, own, "the healthy worker got its whole stream");
+        // One stall is 3 s, two are 6 s; the simulation itself takes milliseconds.
+        assert!(
+            took < stall * 5 / 3,
+            "the healthy worker waited {took:?}: the hung workers were waited for one by one"
+        );
     }
 }

@@ -235,8 +235,9 @@ fn run_all(
         progress.push(bar);
     }
 
-    // Groups start in order as soon as enough of the `jobs` slots are free; each run gives
-    // its slot back when it ends.
+    // Groups start in order as soon as enough of the `jobs` slots are free (a group with
+    // more runs than `jobs` takes them all); a group gives a slot back whenever it has fewer
+    // runs left than it holds slots.
     let records: Mutex<Vec<Option<RunRecord>>> = Mutex::new(vec![None; plan.runs.len()]);
     let free = (Mutex::new(plan.jobs.max(1)), Condvar::new());
     let release = || {
@@ -258,6 +259,7 @@ fn run_all(
             drop(slots);
             let (dirs, progress, records, release) = (&dirs, &progress, &records, &release);
             scope.spawn(move || {
+                let left = Mutex::new(group.runs.len());
                 let done = |i: usize, record: RunRecord| {
                     let bar = &progress[i];
                     match &record.status {
@@ -268,7 +270,11 @@ fn run_all(
                     }
                     on_done(i, &record, &dirs[i]);
                     records.lock().expect("no panics while holding the lock")[i] = Some(record);
-                    release();
+                    let mut left = left.lock().expect("no panics while holding the lock");
+                    *left -= 1;
+                    if *left < need {
+                        release();
+                    }
                 };
                 if group.shared {
                     run_shared(group, plan, config, world, dirs, progress, &done);
@@ -299,19 +305,20 @@ struct Group {
 }
 
 /// A worker that takes no message for this long is cut off from its group's simulation
-/// (at most the run's timeout).
+/// (at most a quarter of the run's timeout: the group waits that long for a hung worker,
+/// which its groupmates' own timeouts must absorb; workers that hang together cost one wait).
 const STALL: Duration = Duration::from_secs(300);
 
 /// Which runs share a simulation, in the order they start.
 ///
-/// With sharing on (no dataset), the runs of one scenario whose plugins need the same
+/// With sharing on (no dataset), all the runs of one scenario whose plugins need the same
 /// expensive sensor (the camera; else the 3D lidar; else neither) are fed by one simulation,
-/// in groups of at most `jobs` so that every run keeps a core as it would alone. The
-/// camera's groups start first, then the lidar's, longest routes first, so that the long
-/// runs do not end up alone at the end. A plugin whose sensors cannot be read (it fails to
-/// load) runs alone, to fail in its own worker.
+/// however many they are: a second group would simulate the same scenario again, which
+/// costs more than the runs' sharing the cores (a group starts when `jobs` slots, or as many
+/// as it has runs, are free). The camera's groups start first, then the lidar's, longest
+/// routes first, so that the long runs do not end up alone at the end. A plugin whose
+/// sensors cannot be read (it fails to load) runs alone, to fail in its own worker.
 fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
-    let jobs = plan.jobs.max(1);
     let share = plan.share_simulation && plan.dataset.is_none();
     let mut probed: BTreeMap<&Path, Option<sim::SensorSet>> = BTreeMap::new();
     let sensors: Vec<Option<sim::SensorSet>> = plan
@@ -357,15 +364,11 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
     }
     let mut shared: Vec<Group> = keyed
         .into_values()
-        .flat_map(|runs| {
-            runs.chunks(jobs)
-                .map(|c| Group {
-                    runs: c.to_vec(),
-                    // A run alone simulates in its own worker, as without sharing.
-                    shared: c.len() > 1,
-                    sensors: c.iter().map(|&i| sensors[i].expect("keyed")).collect(),
-                })
-                .collect::<Vec<_>>()
+        .map(|runs| Group {
+            // A run alone simulates in its own worker, as without sharing.
+            shared: runs.len() > 1,
+            sensors: runs.iter().map(|&i| sensors[i].expect("keyed")).collect(),
+            runs,
         })
         .collect();
     shared.append(&mut groups);
@@ -448,7 +451,7 @@ fn run_shared(
     }
     let simulation = sim::Simulation::with_world(config, world.clone(), scenario, plan.seed);
     let end_ns = plan.max_time_s.map(|s| (s * 1e9).round() as i64);
-    let stall = STALL.min(plan.timeout);
+    let stall = STALL.min(plan.timeout / 4);
     std::thread::scope(|scope| {
         let feeding = scope.spawn(move || match simulation {
             Ok(sim) => feed::Feed { end_ns, stall }.run(&sim, subscribers),

@@ -458,9 +458,10 @@ fn faulty_plugins_cost_their_own_run_only() {
     }
 }
 
-/// One simulation feeds the runs of a scenario that need the same sensors: two lio-sam
-/// runs share one lidar simulation, the two odometry baselines another, and every file
-/// they write is the same, byte for byte, as when each run simulates for itself.
+/// One simulation feeds the runs of a scenario that need the same sensors, however many
+/// they are: three lio-sam runs with two jobs share one lidar simulation, the two odometry
+/// baselines another, and every file they write is the same, byte for byte, as when each
+/// run simulates for itself.
 #[test]
 fn a_shared_simulation_gives_every_run_its_own_data() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -475,6 +476,7 @@ fn a_shared_simulation_gives_every_run_its_own_data() {
         entry("odom", "wheel_odometry", "yaw_source = \"wheels\""),
         entry("lio-b", "lio_sam", "use_imu = false"),
         entry("odom-imu", "wheel_odometry", "yaw_source = \"imu\""),
+        entry("lio-c", "lio_sam", "use_imu = false"),
     ]
     .concat();
     let head = "scenarios = [\"s1\"]\nseed = 4\njobs = 2\nmax_time_s = 12.0\n";
@@ -494,7 +496,7 @@ fn a_shared_simulation_gives_every_run_its_own_data() {
         "unshared bench failed: {}",
         text(&o.stderr)
     );
-    for label in ["lio-a", "lio-b", "odom", "odom-imu"] {
+    for label in ["lio-a", "lio-b", "lio-c", "odom", "odom-imu"] {
         let run = |out: &Path| out.join("s1").join(label);
         assert_eq!(
             json(&run(&shared).join("timing.json"))["source"],
