@@ -470,26 +470,44 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
         // 1 / z at sample `s` of column `px` on this row: `q_row[s] + qx px`.
         let q_col = dx.map(|dx| t.q0 + t.qx * (dx - t.x[0]));
         for py in t.y_lo.max(y0)..=t.y_hi.min(y1) {
-            let (mut a, mut b, mut q_row) = ([0i32; N], [0i32; N], [0.0f32; N]);
+            // Sample `s` covers column `px` when `ceil(lo) <= px <= floor(hi)`, the ceiling
+            // and the floor being truncations of `OFFSET_F - lo` and `hi + OFFSET_F`
+            // (positive: the bounds are clamped into the raster, so the offset costs 6e-5 px
+            // of precision, under EDGE_EPS). For positive `y` and an integer `k`,
+            // `trunc(y) >= k` exactly when `y >= k`, so the test is two float comparisons
+            // per sample, `y_lo >= OFFSET - px` and `y_hi >= px + OFFSET`, with the same
+            // outcome as with integers, and no conversion per sample (branch-free: the lanes
+            // run as one vector). A sample row outside the triangle gets -inf: never covered.
+            let (mut y_lo, mut y_hi, mut q_row) = ([0.0f32; N], [0.0f32; N], [0.0f32; N]);
             for s in 0..N {
                 let fy = py as f32 + dy[s];
                 let at = |e: &[f32; 3]| e[0] + e[2] * (fy - e[1]);
                 let lo = at(&left[0]).max(at(&left[1])) - EDGE_EPS - dx[s];
                 let hi = at(&right[0]).min(at(&right[1])) + EDGE_EPS - dx[s];
-                // Clamped into the raster, where the ceiling and the floor are truncations
-                // of positive numbers (branch-free, so the lanes run as one vector; the
-                // offset costs 6e-5 px of precision, under EDGE_EPS).
                 let lo = lo.clamp(x_lo, x_hi + 1.0);
                 let hi = hi.clamp(x_lo - 1.0, x_hi);
                 let rows_in = (fy >= y_min) & (fy <= y_max);
-                let ceil = OFFSET - (OFFSET_F - lo) as i32;
-                let floor = (hi + OFFSET_F) as i32 - OFFSET;
-                a[s] = if rows_in { ceil } else { i32::MAX };
-                b[s] = if rows_in { floor } else { i32::MIN };
+                y_lo[s] = if rows_in {
+                    OFFSET_F - lo
+                } else {
+                    f32::NEG_INFINITY
+                };
+                y_hi[s] = if rows_in {
+                    hi + OFFSET_F
+                } else {
+                    f32::NEG_INFINITY
+                };
                 q_row[s] = q_col[s] + t.qy * (fy - t.y[0]);
             }
-            let first = a.iter().copied().min().unwrap_or(i32::MAX);
-            let last = b.iter().copied().max().unwrap_or(i32::MIN);
+            // The columns from the smallest ceiling to the largest floor (a NaN bound, from
+            // a degenerate edge, covers nothing, as its comparisons fail).
+            let max_lo = y_lo.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            let max_hi = y_hi.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            if !(max_lo > 0.0 && max_hi > 0.0) {
+                continue;
+            }
+            let first = OFFSET - max_lo as i32;
+            let last = max_hi as i32 - OFFSET;
             if first > last {
                 continue;
             }
@@ -500,6 +518,8 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
                 .zip(id_buf[span].chunks_exact_mut(N))
             {
                 let fx = px as f32;
+                // Exact: small integers.
+                let (from_left, from_right) = ((OFFSET - px) as f32, (px + OFFSET) as f32);
                 let (old_q, old_id): ([f32; N], [u32; N]) = (
                     (&*qb).try_into().expect("N samples"),
                     (&*ib).try_into().expect("N samples"),
@@ -507,7 +527,7 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
                 let (mut new_q, mut new_id) = (old_q, old_id);
                 // Lane by lane, as selects: one vector operation per step.
                 for s in 0..N {
-                    let covered = (a[s] <= px) & (px <= b[s]);
+                    let covered = (y_lo[s] >= from_left) & (y_hi[s] >= from_right);
                     let q = q_row[s] + t.qx * fx;
                     let nearer =
                         covered & ((q > old_q[s]) | ((q == old_q[s]) & (t.id < old_id[s])));
