@@ -111,7 +111,8 @@ pub struct BenchConfig {
     /// Extra directories to search for plugins (relative to this file).
     #[serde(default)]
     pub plugin_dirs: Vec<PathBuf>,
-    /// Runs at once (default: the number of cores).
+    /// Runs at once (default: the number of cores); the runs that share one simulation
+    /// start together, however many.
     pub jobs: Option<usize>,
     /// Wall-clock limit of one run.
     #[serde(default = "default_timeout")]

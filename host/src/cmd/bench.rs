@@ -15,7 +15,8 @@ pub struct BenchArgs {
     /// Results folder (default: results/<file stem>).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Runs at once (default: the file's `jobs`, else the number of cores).
+    /// Runs at once (default: the file's `jobs`, else the number of cores); the runs that
+    /// share one simulation start together, however many.
     #[arg(long)]
     pub jobs: Option<usize>,
     /// Cut every route at this many simulated seconds (overrides the file's `max_time_s`;
