@@ -306,7 +306,7 @@ struct Group {
 
 /// A worker that takes no message for this long is cut off from its group's simulation
 /// (at most a quarter of the run's timeout: the group waits that long for a hung worker,
-/// which its groupmates' own timeouts must absorb; workers that hang together cost one wait).
+/// which its groupmates' own timeouts must absorb).
 const STALL: Duration = Duration::from_secs(300);
 
 /// Which runs share a simulation, in the order they start.
