@@ -453,17 +453,38 @@ struct Lane {
     queue: Option<SyncSender<Arc<Vec<u8>>>>,
     sent: usize,
     outcome: Option<Delivery>,
-    /// Since when its writer has been blocked writing to the worker: nanoseconds after
-    /// `epoch`, plus one (0: not writing).
-    writing: Arc<AtomicU64>,
-    epoch: Instant,
+    /// How long its writer has been blocked on the worker's pipe.
+    clock: Arc<WriteClock>,
 }
 
-impl Lane {
-    /// How long its writer has been blocked writing to a worker that does not read (zero
-    /// while it writes nothing or waits for frames).
+/// When a lane's writer started the write it is in, shared with the feed.
+#[derive(Debug)]
+struct WriteClock {
+    epoch: Instant,
+    /// Nanoseconds after `epoch` plus one; 0 while it writes nothing (or waits for frames).
+    since: AtomicU64,
+}
+
+impl WriteClock {
+    fn new() -> Self {
+        Self {
+            epoch: Instant::now(),
+            since: AtomicU64::new(0),
+        }
+    }
+
+    /// Runs `write`, noting when it started.
+    fn timed<T>(&self, write: impl FnOnce() -> T) -> T {
+        let ns = u64::try_from(self.epoch.elapsed().as_nanos()).unwrap_or(u64::MAX - 1);
+        self.since.store(ns + 1, Ordering::Relaxed);
+        let result = write();
+        self.since.store(0, Ordering::Relaxed);
+        result
+    }
+
+    /// How long the write in progress has been blocked (zero when there is none).
     fn stuck(&self) -> Duration {
-        match self.writing.load(Ordering::Relaxed) {
+        match self.since.load(Ordering::Relaxed) {
             0 => Duration::ZERO,
             since => self
                 .epoch
@@ -473,28 +494,15 @@ impl Lane {
     }
 }
 
-/// Runs `write` with `writing` holding its start (see [`Lane::writing`]).
-fn timed<T>((writing, epoch): (&AtomicU64, Instant), write: impl FnOnce() -> T) -> T {
-    let ns = u64::try_from(epoch.elapsed().as_nanos()).unwrap_or(u64::MAX - 1);
-    writing.store(ns + 1, Ordering::Relaxed);
-    let result = write();
-    writing.store(0, Ordering::Relaxed);
-    result
-}
-
-/// Writes frames from `queue` to `out`, flushing whenever the queue runs dry, and notes
-/// in `writing` when it is blocked; returns whether everything was written.
-fn write_lane(
-    mut out: impl Write,
-    queue: &Receiver<Arc<Vec<u8>>>,
-    clock: (&AtomicU64, Instant),
-) -> bool {
+/// Writes frames from `queue` to `out`, flushing whenever the queue runs dry, each write
+/// timed on `clock`; returns whether everything was written.
+fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>, clock: &WriteClock) -> bool {
     let mut out = BufWriter::with_capacity(1 << 16, &mut out);
     loop {
         let frame = match queue.try_recv() {
             Ok(f) => f,
             Err(std::sync::mpsc::TryRecvError::Empty) => {
-                if timed(clock, || out.flush()).is_err() {
+                if clock.timed(|| out.flush()).is_err() {
                     return false;
                 }
                 match queue.recv() {
@@ -504,7 +512,7 @@ fn write_lane(
             }
             Err(std::sync::mpsc::TryRecvError::Disconnected) => break,
         };
-        if timed(clock, || out.write_all(&frame)).is_err() {
+        if clock.timed(|| out.write_all(&frame)).is_err() {
             return false;
         }
     }
@@ -523,21 +531,21 @@ impl Feed {
         let sensors = union(&subscribers.iter().map(|s| s.sensors).collect::<Vec<_>>());
         std::thread::scope(|scope| {
             let mut lanes = Vec::new();
-            let epoch = Instant::now();
             for sub in subscribers {
                 let (tx, rx) = sync_channel::<Arc<Vec<u8>>>(AHEAD);
                 let input = sub.input;
-                let writing = Arc::new(AtomicU64::new(0));
-                let clock = Arc::clone(&writing);
-                let writer = scope.spawn(move || write_lane(input, &rx, (&clock, epoch)));
+                let clock = Arc::new(WriteClock::new());
+                let writer = {
+                    let clock = Arc::clone(&clock);
+                    scope.spawn(move || write_lane(input, &rx, &clock))
+                };
                 lanes.push((
                     Lane {
                         sensors: sub.sensors,
                         queue: Some(tx),
                         sent: 0,
                         outcome: None,
-                        writing,
-                        epoch,
+                        clock,
                     },
                     writer,
                 ));
@@ -614,7 +622,7 @@ impl Feed {
                         lane.queue = None;
                         false
                     }
-                    Err(TrySendError::Full(_)) if lane.stuck() > self.stall => {
+                    Err(TrySendError::Full(_)) if lane.clock.stuck() > self.stall => {
                         lane.outcome = Some(Delivery::Stalled { sent: lane.sent });
                         lane.queue = None;
                         false
