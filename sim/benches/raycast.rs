@@ -44,8 +44,21 @@ fn benches(c: &mut Criterion) {
     let mut group = c.benchmark_group("rays_one_thread");
     group.throughput(Throughput::Elements(dirs.len() as u64));
     let bvh = Bvh::build(mesh);
+    eprintln!(
+        "bvh: AVX2 kernel {}",
+        if bvh.uses_avx2() {
+            "on"
+        } else {
+            "off (not this CPU)"
+        }
+    );
     group.bench_function("bvh", |b| {
         b.iter(|| black_box(sweep(&bvh, &origin, &dirs, &mut out)))
+    });
+    // The kernel of CPUs without AVX2, on this one.
+    let portable = bvh.clone().portable();
+    group.bench_function("bvh_portable", |b| {
+        b.iter(|| black_box(sweep(&portable, &origin, &dirs, &mut out)))
     });
     // Embree as `raycaster = "embree"` builds it (spatial-split SAH on one thread), the same
     // rays and range gate: one rtcIntersect1 per ray, then each column in packets.

@@ -29,4 +29,11 @@ impl Ray {
             inv_d: [inv(dir.x), inv(dir.y), inv(dir.z)],
         }
     }
+
+    /// Per axis: whether the ray goes towards -axis (so it enters a box through its high
+    /// plane).
+    #[inline(always)]
+    pub fn neg(&self) -> [bool; 3] {
+        self.inv_d.map(|x| x < 0.0)
+    }
 }

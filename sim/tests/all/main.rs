@@ -3,4 +3,5 @@
 mod camera;
 mod camera_features;
 mod embree;
+mod kernels;
 mod sim;

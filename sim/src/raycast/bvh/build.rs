@@ -1,5 +1,5 @@
 //! Top-down build of the binary tree, each node split where [`split`] says (binned SAH,
-//! Wald 2007). The binary tree is then collapsed into the 4-wide tree that is traversed
+//! Wald 2007). The binary tree is then collapsed into the 8-wide tree that is traversed
 //! ([`super::collapse`]).
 //!
 //! Subtrees of at least [`PARALLEL_MIN`] triangles are built in parallel with rayon and
@@ -14,7 +14,7 @@ use crate::raycast::triangle::{Triangle, hittable};
 use crate::world::Mesh;
 
 /// Most triangles in a leaf.
-pub(crate) const MAX_LEAF: usize = 4;
+pub(crate) const MAX_LEAF: usize = 8;
 /// Deepest leaf the binary tree can have (see [`super::sah`]).
 pub(crate) const MAX_DEPTH: usize = 80;
 const PARALLEL_MIN: usize = 8192;
@@ -40,23 +40,14 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
         prims.bounds.push(bounds);
     }
     if tris.is_empty() {
-        return Bvh {
-            nodes: Vec::new(),
-            triangles: Vec::new(),
-            ids: Vec::new(),
-            depth: 0,
-        };
+        return Bvh::from_parts(Vec::new(), Vec::new(), Vec::new(), 0);
     }
     let mut order: Vec<u32> = (0..u32::try_from(tris.len()).expect("checked above")).collect();
     let (root, pairs) = subtree(&prims, &mut order, 0, 0);
     let (nodes, depth) = collapse::collapse(&root, &pairs);
     let ids: Vec<u32> = order.iter().map(|&k| ids[k as usize]).collect();
-    Bvh {
-        nodes,
-        depth,
-        triangles: order.iter().map(|&k| tris[k as usize]).collect(),
-        ids,
-    }
+    let triangles = order.iter().map(|&k| tris[k as usize]).collect();
+    Bvh::from_parts(nodes, triangles, ids, depth)
 }
 
 /// Builds the subtree over `idx` (which starts at `first` in the leaf order), in parallel

@@ -1,27 +1,41 @@
 //! Bounding volume hierarchy over the mesh triangles: binary build ([`build`]) split by binned
-//! SAH ([`sah`]), collapsed to a 4-wide tree ([`collapse`]) whose four child boxes are tested
-//! together (one SSE instruction per step), traversed nearest child first ([`traverse`]).
+//! SAH ([`sah`]), collapsed to an 8-wide tree ([`collapse`]) whose eight child boxes are tested
+//! together ([`kernel`]: one AVX2 instruction per step on CPUs that have it, chosen at run
+//! time; two SSE halves elsewhere), traversed nearest child first ([`traverse`]). Both kernels
+//! give the same hits bit for bit, as does every width and leaf size: the closest hit under
+//! the tie rule is unique, so the tree's shape only changes the speed.
 //!
-//! Layout: wide nodes of 128 bytes (two cache lines) in a flat `Vec`, depth-first; leaves of
+//! Layout: wide nodes of 256 bytes (four cache lines) in a flat `Vec`, depth-first; leaves of
 //! up to [`build::MAX_LEAF`] triangles live in their parent's lanes and index the precomputed
 //! triangles, stored contiguous in leaf order.
 //!
-//! Tried on the vineyard benchmark and left out: 8-wide nodes (about 5% slower: more cache
-//! lines per node), packets of four rays of a lidar column traversed together (Wald et al.
-//! 2001; 1.5x slower: the rays of a column diverge too fast to share nodes), packets of eight
-//! rays of one laser ring over consecutive columns (0.2° apart, so they share nearly every
-//! node; exact, and still 1.7x slower over a whole sweep: with baseline x86-64's 4-wide SSE,
-//! testing every box against every ray costs more than the node fetches it saves), two rays of a fan
-//! interleaved step by step (no gain: more branch mispredictions). SAH bins (16 or 32) and
-//! leaf sizes (4 or 8) made no difference beyond noise, nor did building for x86-64-v3
-//! (AVX2). Also taken out: starting a lidar beam's traversal from its hit in the previous
-//! column (exact, since the closest hit is unique under the tie rule; but in criterion a
-//! sweep seeded so was 4–8% slower than one without, in every paired run: the guessed
-//! triangle's lookup costs two cache misses, and nearest-first traversal finds that hit
+//! Measured on the vineyard (`cargo bench -p vinebench-sim --bench raycast`, 2026-11-25): 8-wide
+//! nodes with the AVX2 kernel and leaves of up to 8 triangles trace about 1.3x the rays per
+//! second of the 4-wide SSE tree with leaves of 4 that this replaced (4.0 M against 3.05 M
+//! per thread); the portable kernel on the 8-wide tree is about 6% slower than the 4-wide one
+//! was, the price on CPUs without AVX2 (x86-64 before 2013; other architectures). The traversal
+//! is bound by the latency of its chain of node tests and branches, not by memory: nodes
+//! quantized to 8 bits per plane (Ylitie, Karras & Laine 2017; one cache line for 4 children,
+//! two for 8), decoded exactly and rounded outwards, were 1.4x slower with 4 children and 1.4x
+//! slower with 8, the decoding sitting on that chain. Spatial splits matter little here: Embree
+//! without them (its medium quality) traces 5% slower than with.
+//!
+//! Tried before on the 4-wide tree and left out: packets of four rays of a lidar column
+//! traversed together (Wald et al. 2001; 1.5x slower: the rays of a column diverge too fast to
+//! share nodes), packets of eight rays of one laser ring over consecutive columns (0.2° apart,
+//! so they share nearly every node; exact, and still 1.7x slower over a whole sweep: testing
+//! every box against every ray costs more than the node fetches it saves), two rays of a fan
+//! interleaved step by step (no gain: more branch mispredictions). SAH bins (16 or 32) made no
+//! difference beyond noise, nor does the SAH's traversal-to-triangle cost ratio (0.5, 1, 2 on
+//! the 8-wide tree). Also taken out: starting a lidar beam's traversal from its hit in the
+//! previous column (exact, since the closest hit is unique under the tie rule; but in
+//! criterion a sweep seeded so was 4–8% slower than one without, in every paired run: the
+//! guessed triangle's lookup costs two cache misses, and nearest-first traversal finds that hit
 //! early anyway).
 
 pub(crate) mod build;
 mod collapse;
+mod kernel;
 mod node;
 mod sah;
 mod traverse;
@@ -32,6 +46,9 @@ use super::ray::Ray;
 use super::triangle::Triangle;
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
+use kernel::Portable;
+#[cfg(target_arch = "x86_64")]
+use kernel::{Avx2, HasAvx2};
 use node::{WIDTH, WideNode};
 use traverse::{Entry, SMALL_STACK};
 
@@ -46,6 +63,10 @@ pub struct Bvh {
     ids: Vec<u32>,
     /// Levels of wide nodes.
     depth: usize,
+    /// Set when this CPU has AVX2: traversals then run the [`kernel::Avx2`] box test and are
+    /// compiled for AVX2 (same hits as without).
+    #[cfg(target_arch = "x86_64")]
+    avx2: Option<HasAvx2>,
 }
 
 impl Bvh {
@@ -55,7 +76,42 @@ impl Bvh {
         build::build(mesh)
     }
 
-    /// Number of (4-wide) nodes; 0 for a mesh with no hittable triangle.
+    /// The tree from its parts, with the kernel this CPU runs best.
+    fn from_parts(
+        nodes: Vec<WideNode>,
+        triangles: Vec<Triangle>,
+        ids: Vec<u32>,
+        depth: usize,
+    ) -> Self {
+        Self {
+            nodes,
+            triangles,
+            ids,
+            depth,
+            #[cfg(target_arch = "x86_64")]
+            avx2: HasAvx2::detect(),
+        }
+    }
+
+    /// The same tree traversed with the portable kernel only (baseline x86-64's SSE on any
+    /// CPU), to compare kernels: the hits are the same.
+    pub fn portable(mut self) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.avx2 = None;
+        }
+        self
+    }
+
+    /// Whether traversals use the AVX2 kernel.
+    pub fn uses_avx2(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        return self.avx2.is_some();
+        #[cfg(not(target_arch = "x86_64"))]
+        false
+    }
+
+    /// Number of ([`WIDTH`]-wide) nodes; 0 for a mesh with no hittable triangle.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -115,8 +171,9 @@ impl RayCaster for Bvh {
         t_min: f32,
         t_max: f32,
     ) -> Option<Hit> {
-        let ray = Ray::new(origin, dir);
-        self.with_stack(|stack| traverse::closest(self, ray, t_min, t_max, stack))
+        let mut out = [None];
+        self.cast_fan(origin, std::slice::from_ref(dir), t_min, t_max, &mut out);
+        out[0]
     }
 
     /// Same answers as [`Bvh::cast`] ray by ray, with one traversal stack for the whole fan.
@@ -134,10 +191,61 @@ impl RayCaster for Bvh {
             out.len() >= dirs.len(),
             "cast_fan: `out` shorter than `dirs`"
         );
+        let out = &mut out[..dirs.len()];
         self.with_stack(|stack| {
-            for (slot, dir) in out.iter_mut().zip(dirs) {
-                *slot = traverse::closest(self, Ray::new(origin, dir), t_min, t_max, stack);
+            #[cfg(target_arch = "x86_64")]
+            if let Some(cpu) = self.avx2 {
+                // SAFETY: `cpu` proves this CPU has AVX2.
+                #[allow(unsafe_code)]
+                unsafe {
+                    fan_avx2(self, origin, dirs, t_min, t_max, out, stack, cpu);
+                }
+                return;
             }
+            fan(self, origin, dirs, t_min, t_max, out, stack, |ray| {
+                Portable::new(ray, t_min)
+            });
         });
     }
+}
+
+/// Casts every ray of the fan with the box test `boxes` makes for it.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn fan<K: kernel::BoxTest>(
+    bvh: &Bvh,
+    origin: &Point3<f32>,
+    dirs: &[Vector3<f32>],
+    t_min: f32,
+    t_max: f32,
+    out: &mut [Option<Hit>],
+    stack: &mut [Entry],
+    boxes: impl Fn(&Ray) -> K,
+) {
+    for (slot, dir) in out.iter_mut().zip(dirs) {
+        let ray = Ray::new(origin, dir);
+        *slot = traverse::closest(bvh, ray, boxes(&ray), t_min, t_max, stack);
+    }
+}
+
+/// [`fan`] with the AVX2 box test, the whole traversal compiled for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2, which `_cpu` proves.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments, unsafe_code)]
+#[target_feature(enable = "avx2")]
+unsafe fn fan_avx2(
+    bvh: &Bvh,
+    origin: &Point3<f32>,
+    dirs: &[Vector3<f32>],
+    t_min: f32,
+    t_max: f32,
+    out: &mut [Option<Hit>],
+    stack: &mut [Entry],
+    cpu: HasAvx2,
+) {
+    fan(bvh, origin, dirs, t_min, t_max, out, stack, |ray| {
+        Avx2::new(ray, t_min, cpu)
+    });
 }

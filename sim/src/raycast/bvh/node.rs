@@ -1,4 +1,4 @@
-//! Node layouts: the binary nodes of the build and the 4-wide nodes that are traversed.
+//! Node layouts: the binary nodes of the build and the 8-wide nodes that are traversed.
 
 use crate::raycast::aabb::{fmax, fmin};
 use crate::raycast::ray::Ray;
@@ -24,10 +24,10 @@ impl Node {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct NodePair(pub [Node; 2]);
 
-/// Children per wide node (8 also works, and was slower).
-pub(crate) const WIDTH: usize = 4;
+/// Children per wide node: eight, one AVX2 register of boxes per plane (see [`super::kernel`]).
+pub(crate) const WIDTH: usize = 8;
 
-/// [`WIDTH`] children's boxes side by side, lane `i` being child `i` (two cache lines for 4).
+/// [`WIDTH`] children's boxes side by side, lane `i` being child `i` (four cache lines).
 /// Child `i` is a node (`child[i]` its index), a leaf (bit `i` of `leaves` set: `count[i]` triangles
 /// from `child[i]` in leaf order) or absent (an inverted, empty box no ray enters).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,4 +1,4 @@
-//! Closest-hit traversal of the 4-wide tree: iterative with an explicit stack, children
+//! Closest-hit traversal of the 8-wide tree: iterative with an explicit stack, children
 //! visited nearest first, leaves intersected as soon as their box is entered, and every box
 //! entered beyond the best hit so far skipped.
 //!
@@ -6,6 +6,7 @@
 //! of two rays of a fan was tried: the extra branch mispredictions ate the overlap.)
 
 use super::Bvh;
+use super::kernel::BoxTest;
 use super::node::WIDTH;
 use crate::raycast::Hit;
 use crate::raycast::brute::better;
@@ -19,9 +20,9 @@ pub(super) type Entry = (u32, f32);
 pub(super) const SMALL_STACK: usize = 64;
 
 /// The state of one ray's traversal.
-pub(super) struct Walker<'s> {
+pub(super) struct Walker<'s, K> {
     ray: Ray,
-    neg: [bool; 3],
+    boxes: K,
     t_min: f32,
     best_t: f32,
     best_id: u32,
@@ -31,13 +32,21 @@ pub(super) struct Walker<'s> {
     sp: usize,
 }
 
-impl<'s> Walker<'s> {
-    /// A traversal with no hit yet.
-    pub fn new(bvh: &Bvh, ray: Ray, t_min: f32, t_max: f32, stack: &'s mut [Entry]) -> Self {
+impl<'s, K: BoxTest> Walker<'s, K> {
+    /// A traversal with no hit yet; `boxes` tests this ray against a node's boxes.
+    #[inline(always)]
+    pub fn new(
+        bvh: &Bvh,
+        ray: Ray,
+        boxes: K,
+        t_min: f32,
+        t_max: f32,
+        stack: &'s mut [Entry],
+    ) -> Self {
         let start = !bvh.nodes.is_empty() && t_min <= t_max;
         Self {
-            neg: [ray.inv_d[0] < 0.0, ray.inv_d[1] < 0.0, ray.inv_d[2] < 0.0],
             ray,
+            boxes,
             t_min,
             best_t: t_max,
             best_id: u32::MAX,
@@ -61,7 +70,7 @@ impl<'s> Walker<'s> {
             return false;
         };
         let node = &bvh.nodes[current as usize];
-        let (dist, mask) = node.intersect(&self.ray, &self.neg, self.t_min, self.best_t);
+        let (dist, mask) = self.boxes.test(node, self.best_t);
         // Leaves first, as soon as entered: a hit there prunes the inner children.
         let mut leaves = mask & node.leaves;
         let mut inner = mask & !node.leaves;
@@ -150,14 +159,16 @@ impl<'s> Walker<'s> {
 }
 
 /// Closest hit of one ray (smallest `t` in `[t_min, t_max]`, ties to the smaller index).
-pub(super) fn closest(
+#[inline(always)]
+pub(super) fn closest<K: BoxTest>(
     bvh: &Bvh,
     ray: Ray,
+    boxes: K,
     t_min: f32,
     t_max: f32,
     stack: &mut [Entry],
 ) -> Option<Hit> {
-    let mut walker = Walker::new(bvh, ray, t_min, t_max, stack);
+    let mut walker = Walker::new(bvh, ray, boxes, t_min, t_max, stack);
     while walker.step(bvh) {}
     walker.hit()
 }

@@ -8,6 +8,7 @@ fn bvh_matches_brute_force_on_random_soup() {
     let mut rng = rng(7);
     let mesh = soup(&mut rng, 3000, 10.0, 1.5);
     let bvh = Bvh::build(&mesh);
+    let portable = bvh.clone().portable();
     let brute = BruteForce::build(&mesh);
     let mut hits = 0;
     for i in 0..20_000 {
@@ -25,11 +26,31 @@ fn bvh_matches_brute_force_on_random_soup() {
             got, expected,
             "ray {i} from {origin:?} along {dir:?} in [{t_min}, {t_max}]: expected the brute-force hit"
         );
+        assert_eq!(
+            portable.cast(&origin, &dir, t_min, t_max),
+            expected,
+            "ray {i} from {origin:?} along {dir:?} in [{t_min}, {t_max}]: expected the brute-force hit from the portable kernel"
+        );
         hits += usize::from(got.is_some());
     }
     assert!(
         (5_000..19_000).contains(&hits),
         "expected a mix of hits and misses, got {hits} hits of 20000"
+    );
+}
+
+#[test]
+fn the_avx2_kernel_runs_where_the_cpu_has_it() {
+    let bvh = Bvh::build(&soup(&mut rng(6), 100, 5.0, 1.0));
+    #[cfg(target_arch = "x86_64")]
+    assert_eq!(
+        bvh.uses_avx2(),
+        std::arch::is_x86_feature_detected!("avx2"),
+        "expected the AVX2 kernel exactly on CPUs with AVX2"
+    );
+    assert!(
+        !bvh.portable().uses_avx2(),
+        "expected `portable` to turn the AVX2 kernel off"
     );
 }
 
