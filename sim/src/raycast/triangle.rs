@@ -21,7 +21,7 @@ pub(crate) fn hittable(mesh: &Mesh) -> impl Iterator<Item = (u32, [[f32; 3]; 3],
 
 /// `|cos|` of the angle between ray and triangle plane below which the ray counts as parallel
 /// to the triangle and misses it (grazing angles under about 1e-6 rad).
-const PARALLEL_COS: f32 = 1e-6;
+pub(crate) const PARALLEL_COS: f32 = 1e-6;
 
 #[inline(always)]
 fn sub(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
@@ -97,5 +97,60 @@ impl Triangle {
             return None;
         }
         Some(dot(&c, &self.n) / den)
+    }
+}
+
+/// Lanes of a [`TriBlock`]: the most triangles a BVH leaf holds.
+pub(crate) const BLOCK: usize = 8;
+
+/// The triangles of one BVH leaf side by side (`v0[axis][lane]` and so on), so a SIMD kernel
+/// tests them all at once; lanes past `len` are empty (zero normal: no ray hits them) and
+/// carry the id `u32::MAX`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+pub(crate) struct TriBlock {
+    pub v0: [[f32; BLOCK]; 3],
+    pub e1: [[f32; BLOCK]; 3],
+    pub e2: [[f32; BLOCK]; 3],
+    pub n: [[f32; BLOCK]; 3],
+    /// Mesh index of each lane's triangle.
+    pub id: [u32; BLOCK],
+}
+
+impl TriBlock {
+    /// A block of `tris` (at most [`BLOCK`]) with their mesh indices.
+    pub fn new(tris: &[Triangle], ids: &[u32]) -> Self {
+        assert!(
+            tris.len() <= BLOCK && tris.len() == ids.len(),
+            "a block holds at most {BLOCK} triangles, one id each"
+        );
+        let mut block = TriBlock {
+            v0: [[0.0; BLOCK]; 3],
+            e1: [[0.0; BLOCK]; 3],
+            e2: [[0.0; BLOCK]; 3],
+            n: [[0.0; BLOCK]; 3],
+            id: [u32::MAX; BLOCK],
+        };
+        for (lane, (t, &id)) in tris.iter().zip(ids).enumerate() {
+            for k in 0..3 {
+                block.v0[k][lane] = t.v0[k];
+                block.e1[k][lane] = t.e1[k];
+                block.e2[k][lane] = t.e2[k];
+                block.n[k][lane] = t.n[k];
+            }
+            block.id[lane] = id;
+        }
+        block
+    }
+
+    /// The triangle in `lane`, exactly as it was stored.
+    #[inline(always)]
+    pub fn get(&self, lane: usize) -> Triangle {
+        Triangle {
+            v0: std::array::from_fn(|k| self.v0[k][lane]),
+            e1: std::array::from_fn(|k| self.e1[k][lane]),
+            e2: std::array::from_fn(|k| self.e2[k][lane]),
+            n: std::array::from_fn(|k| self.n[k][lane]),
+        }
     }
 }

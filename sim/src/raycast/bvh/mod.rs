@@ -1,24 +1,27 @@
 //! Bounding volume hierarchy over the mesh triangles: binary build ([`build`]) split by binned
-//! SAH ([`sah`]), collapsed to an 8-wide tree ([`collapse`]) whose eight child boxes are tested
-//! together ([`kernel`]: one AVX2 instruction per step on CPUs that have it, chosen at run
-//! time; two SSE halves elsewhere), traversed nearest child first ([`traverse`]). Both kernels
-//! give the same hits bit for bit, as does every width and leaf size: the closest hit under
-//! the tie rule is unique, so the tree's shape only changes the speed.
+//! SAH ([`sah`]), collapsed to an 8-wide tree ([`collapse`]) traversed nearest child first
+//! ([`traverse`]), its eight child boxes and a leaf's up to eight triangles each tested
+//! together ([`kernel`]: AVX2 on CPUs that have it, chosen at run time; the portable kernel
+//! elsewhere). Both kernels give the same hits bit for bit, as does every width and leaf
+//! size: the closest hit under the tie rule is unique, so the tree's shape only changes the
+//! speed.
 //!
-//! Layout: wide nodes of 256 bytes (four cache lines) in a flat `Vec`, depth-first; leaves of
-//! up to [`build::MAX_LEAF`] triangles live in their parent's lanes and index the precomputed
-//! triangles, stored contiguous in leaf order.
+//! Layout: wide nodes of 256 bytes (four cache lines) in a flat `Vec`, depth-first; a leaf of
+//! up to [`build::MAX_LEAF`] triangles lives in its parent's lane and points at one
+//! [`TriBlock`]: its precomputed triangles side by side, blocks in the order the depth-first
+//! nodes name them.
 //!
-//! Measured on the vineyard (`cargo bench -p vinebench-sim --bench raycast`, 2026-11-25): 8-wide
-//! nodes with the AVX2 kernel and leaves of up to 8 triangles trace about 1.3x the rays per
-//! second of the 4-wide SSE tree with leaves of 4 that this replaced (4.0 M against 3.05 M
-//! per thread); the portable kernel on the 8-wide tree is about 6% slower than the 4-wide one
-//! was, the price on CPUs without AVX2 (x86-64 before 2013; other architectures). The traversal
-//! is bound by the latency of its chain of node tests and branches, not by memory: nodes
-//! quantized to 8 bits per plane (Ylitie, Karras & Laine 2017; one cache line for 4 children,
-//! two for 8), decoded exactly and rounded outwards, were 1.4x slower with 4 children and 1.4x
-//! slower with 8, the decoding sitting on that chain. Spatial splits matter little here: Embree
-//! without them (its medium quality) traces 5% slower than with.
+//! Measured on the vineyard (`cargo bench -p vinebench-sim --bench raycast`, 2026-11-25, one
+//! thread): the 4-wide SSE tree with leaves of 4 triangles tested one by one that this
+//! replaced traced 3.05 M rays/s; 8-wide nodes with the AVX2 box test, 4.0 M (leaves of 8:
+//! 2–3% better than of 4, in paired runs); with the leaf's triangles tested at once too,
+//! 5.0 M. The portable kernel on this tree traces 2.7 M (the price on CPUs without AVX2:
+//! x86-64 before 2013, other architectures). The traversal is bound by the latency of its
+//! chain of node tests and branches, not by memory: nodes quantized to 8 bits per plane
+//! (Ylitie, Karras & Laine 2017; half the cache lines), decoded exactly and rounded outwards,
+//! were 1.4x slower with 4 children and with 8, the decoding sitting on that chain. Spatial
+//! splits matter little here: Embree without them (its medium quality) traces 5% slower than
+//! with.
 //!
 //! Tried before on the 4-wide tree and left out: packets of four rays of a lidar column
 //! traversed together (Wald et al. 2001; 1.5x slower: the rays of a column diverge too fast to
@@ -43,7 +46,7 @@ mod traverse;
 use nalgebra::{Point3, Vector3};
 
 use super::ray::Ray;
-use super::triangle::Triangle;
+use super::triangle::TriBlock;
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
 use kernel::Portable;
@@ -57,10 +60,10 @@ use traverse::{Entry, SMALL_STACK};
 pub struct Bvh {
     /// Wide nodes, root first; empty when the mesh has no hittable triangle.
     nodes: Vec<WideNode>,
-    /// Precomputed triangles in leaf order.
-    triangles: Vec<Triangle>,
-    /// Mesh index of each entry of `triangles`.
-    ids: Vec<u32>,
+    /// The leaves' triangles, precomputed, one block per leaf.
+    blocks: Vec<TriBlock>,
+    /// Triangles in the tree.
+    triangle_count: usize,
     /// Levels of wide nodes.
     depth: usize,
     /// Set when this CPU has AVX2: traversals then run the [`kernel::Avx2`] box test and are
@@ -79,14 +82,14 @@ impl Bvh {
     /// The tree from its parts, with the kernel this CPU runs best.
     fn from_parts(
         nodes: Vec<WideNode>,
-        triangles: Vec<Triangle>,
-        ids: Vec<u32>,
+        blocks: Vec<TriBlock>,
+        triangle_count: usize,
         depth: usize,
     ) -> Self {
         Self {
             nodes,
-            triangles,
-            ids,
+            blocks,
+            triangle_count,
             depth,
             #[cfg(target_arch = "x86_64")]
             avx2: HasAvx2::detect(),
@@ -111,14 +114,14 @@ impl Bvh {
         false
     }
 
-    /// Number of ([`WIDTH`]-wide) nodes; 0 for a mesh with no hittable triangle.
+    /// Number of (8-wide) nodes; 0 for a mesh with no hittable triangle.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
     /// Number of triangles in the hierarchy (degenerate ones are not).
     pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
+        self.triangle_count
     }
 
     /// Levels of wide nodes (0 for an empty tree, 1 for a root alone).
@@ -157,7 +160,7 @@ impl std::fmt::Debug for Bvh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Bvh")
             .field("nodes", &self.nodes.len())
-            .field("triangles", &self.triangles.len())
+            .field("triangles", &self.triangle_count)
             .field("depth", &self.depth())
             .finish()
     }
@@ -209,10 +212,10 @@ impl RayCaster for Bvh {
     }
 }
 
-/// Casts every ray of the fan with the box test `boxes` makes for it.
+/// Casts every ray of the fan with the kernel `kernel` makes for it.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn fan<K: kernel::BoxTest>(
+fn fan<K: kernel::Kernel>(
     bvh: &Bvh,
     origin: &Point3<f32>,
     dirs: &[Vector3<f32>],
@@ -220,11 +223,11 @@ fn fan<K: kernel::BoxTest>(
     t_max: f32,
     out: &mut [Option<Hit>],
     stack: &mut [Entry],
-    boxes: impl Fn(&Ray) -> K,
+    kernel: impl Fn(&Ray) -> K,
 ) {
     for (slot, dir) in out.iter_mut().zip(dirs) {
         let ray = Ray::new(origin, dir);
-        *slot = traverse::closest(bvh, ray, boxes(&ray), t_min, t_max, stack);
+        *slot = traverse::closest(bvh, kernel(&ray), t_min, t_max, stack);
     }
 }
 

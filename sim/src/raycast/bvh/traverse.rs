@@ -6,11 +6,9 @@
 //! of two rays of a fan was tried: the extra branch mispredictions ate the overlap.)
 
 use super::Bvh;
-use super::kernel::BoxTest;
+use super::kernel::Kernel;
 use super::node::WIDTH;
 use crate::raycast::Hit;
-use crate::raycast::brute::better;
-use crate::raycast::ray::Ray;
 
 /// Stack entries: a wide node still to visit and the distance at which the ray enters it.
 pub(super) type Entry = (u32, f32);
@@ -21,9 +19,7 @@ pub(super) const SMALL_STACK: usize = 64;
 
 /// The state of one ray's traversal.
 pub(super) struct Walker<'s, K> {
-    ray: Ray,
-    boxes: K,
-    t_min: f32,
+    kernel: K,
     best_t: f32,
     best_id: u32,
     /// Node to visit next; `None` when done.
@@ -32,22 +28,13 @@ pub(super) struct Walker<'s, K> {
     sp: usize,
 }
 
-impl<'s, K: BoxTest> Walker<'s, K> {
-    /// A traversal with no hit yet; `boxes` tests this ray against a node's boxes.
+impl<'s, K: Kernel> Walker<'s, K> {
+    /// A traversal with no hit yet; `kernel` tests this ray against boxes and triangles.
     #[inline(always)]
-    pub fn new(
-        bvh: &Bvh,
-        ray: Ray,
-        boxes: K,
-        t_min: f32,
-        t_max: f32,
-        stack: &'s mut [Entry],
-    ) -> Self {
+    pub fn new(bvh: &Bvh, kernel: K, t_min: f32, t_max: f32, stack: &'s mut [Entry]) -> Self {
         let start = !bvh.nodes.is_empty() && t_min <= t_max;
         Self {
-            ray,
-            boxes,
-            t_min,
+            kernel,
             best_t: t_max,
             best_id: u32::MAX,
             current: start.then_some(0),
@@ -70,7 +57,7 @@ impl<'s, K: BoxTest> Walker<'s, K> {
             return false;
         };
         let node = &bvh.nodes[current as usize];
-        let (dist, mask) = self.boxes.test(node, self.best_t);
+        let (dist, mask) = self.kernel.boxes(node, self.best_t);
         // Leaves first, as soon as entered: a hit there prunes the inner children.
         let mut leaves = mask & node.leaves;
         let mut inner = mask & !node.leaves;
@@ -141,34 +128,25 @@ impl<'s, K: BoxTest> Walker<'s, K> {
         self.sp += 1;
     }
 
-    /// Intersects the `count` triangles of a leaf from `first`, keeping the best hit.
+    /// Intersects the `count` triangles of leaf block `block`, keeping the best hit.
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, first: u32, count: u8) {
-        let first = first as usize;
-        let end = first + usize::from(count);
-        for (tri, &id) in bvh.triangles[first..end].iter().zip(&bvh.ids[first..end]) {
-            let Some(t) = tri.intersect(&self.ray) else {
-                continue;
-            };
-            if t >= self.t_min && better(t, id, self.best_t, self.best_id) {
-                self.best_t = t;
-                self.best_id = id;
-            }
-        }
+    fn leaf(&mut self, bvh: &Bvh, block: u32, count: u8) {
+        let block = &bvh.blocks[block as usize];
+        self.kernel
+            .triangles(block, count, &mut self.best_t, &mut self.best_id);
     }
 }
 
 /// Closest hit of one ray (smallest `t` in `[t_min, t_max]`, ties to the smaller index).
 #[inline(always)]
-pub(super) fn closest<K: BoxTest>(
+pub(super) fn closest<K: Kernel>(
     bvh: &Bvh,
-    ray: Ray,
-    boxes: K,
+    kernel: K,
     t_min: f32,
     t_max: f32,
     stack: &mut [Entry],
 ) -> Option<Hit> {
-    let mut walker = Walker::new(bvh, ray, boxes, t_min, t_max, stack);
+    let mut walker = Walker::new(bvh, kernel, t_min, t_max, stack);
     while walker.step(bvh) {}
     walker.hit()
 }
