@@ -100,57 +100,80 @@ impl Triangle {
     }
 }
 
-/// Lanes of a [`TriBlock`]: the most triangles a BVH leaf holds.
+/// Floats a triangle stores: `v0`, `e1`, `e2` and `n`, three each.
+const ROWS: usize = 12;
+/// Most triangles in a BVH leaf: one SIMD register (AVX2) of each row.
 pub(crate) const BLOCK: usize = 8;
 
-/// The triangles of one BVH leaf side by side (`v0[axis][lane]` and so on), so a SIMD kernel
-/// tests them all at once; lanes past `len` are empty (zero normal: no ray hits them) and
-/// carry the id `u32::MAX`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C, align(64))]
-pub(crate) struct TriBlock {
-    pub v0: [[f32; BLOCK]; 3],
-    pub e1: [[f32; BLOCK]; 3],
-    pub e2: [[f32; BLOCK]; 3],
-    pub n: [[f32; BLOCK]; 3],
-    /// Mesh index of each lane's triangle.
-    pub id: [u32; BLOCK],
+/// The triangles of every BVH leaf, leaf after leaf, each leaf stored row by row (a structure
+/// of arrays per leaf): for the leaf of `n` triangles from `first` in leaf order, row `r`
+/// (`v0.x, v0.y, v0.z, e1.x, ..., n.z`) holds its `n` values from `ROWS * first + r * n`. A
+/// SIMD kernel loads a row as [`BLOCK`] lanes at once, the lanes past `n` being whatever
+/// follows (never used); padding at the end keeps every load in bounds. 52 bytes a triangle
+/// with its id, as for an array of [`Triangle`]s, however full the leaves are.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct LeafTriangles {
+    data: Vec<f32>,
+    /// Mesh index of each triangle, in leaf order.
+    ids: Vec<u32>,
 }
 
-impl TriBlock {
-    /// A block of `tris` (at most [`BLOCK`]) with their mesh indices.
-    pub fn new(tris: &[Triangle], ids: &[u32]) -> Self {
+impl LeafTriangles {
+    /// `tris` and their mesh `ids` in leaf order, and the leaves `(first, n)`, which must
+    /// cover them exactly.
+    pub fn new(tris: &[Triangle], ids: &[u32], leaves: &[(usize, usize)]) -> Self {
         assert!(
-            tris.len() <= BLOCK && tris.len() == ids.len(),
-            "a block holds at most {BLOCK} triangles, one id each"
+            tris.len() == ids.len() && leaves.iter().map(|l| l.1).sum::<usize>() == tris.len(),
+            "the leaves must cover the triangles, one id each"
         );
-        let mut block = TriBlock {
-            v0: [[0.0; BLOCK]; 3],
-            e1: [[0.0; BLOCK]; 3],
-            e2: [[0.0; BLOCK]; 3],
-            n: [[0.0; BLOCK]; 3],
-            id: [u32::MAX; BLOCK],
-        };
-        for (lane, (t, &id)) in tris.iter().zip(ids).enumerate() {
-            for k in 0..3 {
-                block.v0[k][lane] = t.v0[k];
-                block.e1[k][lane] = t.e1[k];
-                block.e2[k][lane] = t.e2[k];
-                block.n[k][lane] = t.n[k];
+        let mut data = vec![0.0; ROWS * tris.len() + BLOCK];
+        for &(first, n) in leaves {
+            for (lane, t) in tris[first..first + n].iter().enumerate() {
+                for (a, v) in [t.v0, t.e1, t.e2, t.n].iter().enumerate() {
+                    for (k, &x) in v.iter().enumerate() {
+                        data[ROWS * first + (3 * a + k) * n + lane] = x;
+                    }
+                }
             }
-            block.id[lane] = id;
         }
-        block
+        Self {
+            data,
+            ids: ids.to_vec(),
+        }
     }
 
-    /// The triangle in `lane`, exactly as it was stored.
+    /// Row `r` of the leaf of `n` triangles from `first`: [`BLOCK`] values, the first `n`
+    /// of them the leaf's.
     #[inline(always)]
-    pub fn get(&self, lane: usize) -> Triangle {
+    pub fn row(&self, first: usize, n: usize, r: usize) -> &[f32; BLOCK] {
+        let at = ROWS * first + r * n;
+        self.data[at..at + BLOCK]
+            .try_into()
+            .expect("BLOCK values: the data is padded")
+    }
+
+    /// Triangle `lane` of the leaf of `n` triangles from `first`, exactly as it was stored.
+    #[inline(always)]
+    pub fn get(&self, first: usize, n: usize, lane: usize) -> Triangle {
+        let at = |a: usize| -> [f32; 3] {
+            std::array::from_fn(|k| self.data[ROWS * first + (3 * a + k) * n + lane])
+        };
         Triangle {
-            v0: std::array::from_fn(|k| self.v0[k][lane]),
-            e1: std::array::from_fn(|k| self.e1[k][lane]),
-            e2: std::array::from_fn(|k| self.e2[k][lane]),
-            n: std::array::from_fn(|k| self.n[k][lane]),
+            v0: at(0),
+            e1: at(1),
+            e2: at(2),
+            n: at(3),
         }
+    }
+
+    /// Mesh index of triangle `i` in leaf order.
+    #[inline(always)]
+    pub fn id(&self, i: usize) -> u32 {
+        self.ids[i]
+    }
+
+    /// Triangles stored.
+    pub fn len(&self) -> usize {
+        self.ids.len()
     }
 }

@@ -10,10 +10,10 @@ use super::node::{Node, NodePair, WideNode};
 use super::sah::split;
 use super::{Bvh, collapse};
 use crate::raycast::aabb::Aabb;
-use crate::raycast::triangle::{BLOCK, TriBlock, Triangle, hittable};
+use crate::raycast::triangle::{BLOCK, LeafTriangles, Triangle, hittable};
 use crate::world::Mesh;
 
-/// Most triangles in a leaf: one [`TriBlock`].
+/// Most triangles in a leaf: one SIMD register of each row of [`LeafTriangles`].
 pub(crate) const MAX_LEAF: usize = BLOCK;
 /// Deepest leaf the binary tree can have (see [`super::sah`]).
 pub(crate) const MAX_DEPTH: usize = 80;
@@ -40,33 +40,27 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
         prims.bounds.push(bounds);
     }
     if tris.is_empty() {
-        return Bvh::from_parts(Vec::new(), Vec::new(), 0, 0);
+        return Bvh::from_parts(Vec::new(), LeafTriangles::new(&[], &[], &[]), 0);
     }
     let mut order: Vec<u32> = (0..u32::try_from(tris.len()).expect("checked above")).collect();
     let (root, pairs) = subtree(&prims, &mut order, 0, 0);
-    let (mut nodes, depth) = collapse::collapse(&root, &pairs);
+    let (nodes, depth) = collapse::collapse(&root, &pairs);
     let ids: Vec<u32> = order.iter().map(|&k| ids[k as usize]).collect();
     let tris: Vec<Triangle> = order.iter().map(|&k| tris[k as usize]).collect();
-    let blocks = blocks(&mut nodes, &tris, &ids);
-    Bvh::from_parts(nodes, blocks, tris.len(), depth)
+    let triangles = LeafTriangles::new(&tris, &ids, &leaves(&nodes));
+    Bvh::from_parts(nodes, triangles, depth)
 }
 
-/// One block per leaf, in the order the depth-first nodes name them (so a subtree's leaves
-/// lie together); each leaf lane then points at its block instead of its first triangle.
-fn blocks(nodes: &mut [WideNode], tris: &[Triangle], ids: &[u32]) -> Vec<TriBlock> {
-    let mut blocks = Vec::new();
-    for node in nodes {
-        for lane in 0..node.child.len() {
-            if node.leaves & (1 << lane) == 0 {
-                continue;
-            }
-            let first = node.child[lane] as usize;
-            let end = first + usize::from(node.count[lane]);
-            node.child[lane] = u32::try_from(blocks.len()).expect("block count fits u32");
-            blocks.push(TriBlock::new(&tris[first..end], &ids[first..end]));
-        }
-    }
-    blocks
+/// Every leaf of the tree as `(first, n)` in leaf order.
+fn leaves(nodes: &[WideNode]) -> Vec<(usize, usize)> {
+    nodes
+        .iter()
+        .flat_map(|node| {
+            (0..node.child.len())
+                .filter(|&lane| node.leaves & (1 << lane) != 0)
+                .map(|lane| (node.child[lane] as usize, usize::from(node.count[lane])))
+        })
+        .collect()
 }
 
 /// Builds the subtree over `idx` (which starts at `first` in the leaf order), in parallel

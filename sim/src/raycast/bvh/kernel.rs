@@ -12,7 +12,7 @@
 use super::node::{WIDTH, WideNode};
 use crate::raycast::brute::better;
 use crate::raycast::ray::Ray;
-use crate::raycast::triangle::TriBlock;
+use crate::raycast::triangle::LeafTriangles;
 
 /// One ray's tests, as the traversal needs them.
 pub(super) trait Kernel {
@@ -20,9 +20,16 @@ pub(super) trait Kernel {
     /// enters within `[t_min, t_max]` (see [`WideNode::intersect`]).
     fn boxes(&self, node: &WideNode, t_max: f32) -> ([f32; WIDTH], u32);
 
-    /// The first `count` triangles of a leaf block: replaces `(best_t, best_id)` by any hit
-    /// at `t >= t_min` that is [`better`].
-    fn triangles(&self, block: &TriBlock, count: u8, best_t: &mut f32, best_id: &mut u32);
+    /// The leaf of `n` triangles from `first`: replaces `(best_t, best_id)` by any hit at
+    /// `t >= t_min` that is [`better`].
+    fn triangles(
+        &self,
+        tris: &LeafTriangles,
+        first: usize,
+        n: usize,
+        best_t: &mut f32,
+        best_id: &mut u32,
+    );
 }
 
 /// [`WideNode::intersect`] for one ray.
@@ -50,12 +57,19 @@ impl Kernel for Portable {
     }
 
     #[inline(always)]
-    fn triangles(&self, block: &TriBlock, count: u8, best_t: &mut f32, best_id: &mut u32) {
-        for lane in 0..usize::from(count) {
-            let Some(t) = block.get(lane).intersect(&self.ray) else {
+    fn triangles(
+        &self,
+        tris: &LeafTriangles,
+        first: usize,
+        n: usize,
+        best_t: &mut f32,
+        best_id: &mut u32,
+    ) {
+        for lane in 0..n {
+            let Some(t) = tris.get(first, n, lane).intersect(&self.ray) else {
                 continue;
             };
-            let id = block.id[lane];
+            let id = tris.id(first + lane);
             if t >= self.t_min && better(t, id, *best_t, *best_id) {
                 *best_t = t;
                 *best_id = id;
@@ -78,7 +92,7 @@ mod avx2 {
         _mm256_xor_ps,
     };
 
-    use super::{Kernel, TriBlock, WIDTH, WideNode, better};
+    use super::{Kernel, LeafTriangles, WIDTH, WideNode, better};
     use crate::raycast::ray::Ray;
     use crate::raycast::triangle::{BLOCK, PARALLEL_COS};
 
@@ -169,11 +183,21 @@ mod avx2 {
         /// as the XOR here, and the division runs for all lanes at once, only once some lane
         /// is hit.
         #[inline(always)]
-        fn triangles(&self, block: &TriBlock, count: u8, best_t: &mut f32, best_id: &mut u32) {
+        fn triangles(
+            &self,
+            tris: &LeafTriangles,
+            first: usize,
+            n: usize,
+            best_t: &mut f32,
+            best_id: &mut u32,
+        ) {
             // SAFETY: an `Avx2` exists only on a CPU with AVX2 (see `new`); the loads and the
             // store read and write `[f32; 8]` arrays, unaligned accesses being allowed.
             let (hits, t) = unsafe {
-                let load = |v: &[[f32; BLOCK]; 3]| v.map(|row| _mm256_loadu_ps(row.as_ptr()));
+                // Vector `a` (v0, e1, e2, n) of the leaf's triangles, lane by lane.
+                let load = |a: usize| -> [__m256; 3] {
+                    std::array::from_fn(|k| _mm256_loadu_ps(tris.row(first, n, 3 * a + k).as_ptr()))
+                };
                 let dot = |a: &[__m256; 3], b: &[__m256; 3]| {
                     _mm256_add_ps(
                         _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1])),
@@ -187,9 +211,9 @@ mod avx2 {
                         _mm256_sub_ps(_mm256_mul_ps(a[0], b[1]), _mm256_mul_ps(a[1], b[0])),
                     ]
                 };
-                let n = load(&block.n);
-                let v0 = load(&block.v0);
-                let den = dot(&self.d, &n);
+                let normal = load(3);
+                let v0 = load(0);
+                let den = dot(&self.d, &normal);
                 let c: [__m256; 3] = std::array::from_fn(|k| _mm256_sub_ps(v0[k], self.o[k]));
                 let r = cross(&self.d, &c);
                 let sign_bit = _mm256_set1_ps(-0.0);
@@ -197,8 +221,8 @@ mod avx2 {
                 // The sign bit where den < 0: `* sign` flips exactly those lanes.
                 let zero = _mm256_set1_ps(0.0);
                 let flip = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(den, zero), sign_bit);
-                let u = _mm256_xor_ps(_mm256_xor_ps(dot(&load(&block.e2), &r), sign_bit), flip);
-                let v = _mm256_xor_ps(dot(&load(&block.e1), &r), flip);
+                let u = _mm256_xor_ps(_mm256_xor_ps(dot(&load(2), &r), sign_bit), flip);
+                let v = _mm256_xor_ps(dot(&load(1), &r), flip);
                 let inside = _mm256_and_ps(
                     _mm256_and_ps(
                         _mm256_cmp_ps::<_CMP_GT_OQ>(abs_den, _mm256_set1_ps(PARALLEL_COS)),
@@ -209,10 +233,10 @@ mod avx2 {
                         _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_add_ps(u, v), abs_den),
                     ),
                 );
-                let hits = _mm256_movemask_ps(inside) as u32 & ((1u32 << count) - 1);
+                let hits = _mm256_movemask_ps(inside) as u32 & ((1u32 << n) - 1);
                 let mut t = [0.0f32; BLOCK];
                 if hits != 0 {
-                    _mm256_storeu_ps(t.as_mut_ptr(), _mm256_div_ps(dot(&c, &n), den));
+                    _mm256_storeu_ps(t.as_mut_ptr(), _mm256_div_ps(dot(&c, &normal), den));
                 }
                 (hits, t)
             };
@@ -220,7 +244,7 @@ mod avx2 {
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                let id = block.id[lane];
+                let id = tris.id(first + lane);
                 if t[lane] >= self.t_min_scalar && better(t[lane], id, *best_t, *best_id) {
                     *best_t = t[lane];
                     *best_id = id;

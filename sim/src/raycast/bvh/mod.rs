@@ -7,15 +7,17 @@
 //! speed.
 //!
 //! Layout: wide nodes of 256 bytes (four cache lines) in a flat `Vec`, depth-first; a leaf of
-//! up to [`build::MAX_LEAF`] triangles lives in its parent's lane and points at one
-//! [`TriBlock`]: its precomputed triangles side by side, blocks in the order the depth-first
-//! nodes name them.
+//! up to [`build::MAX_LEAF`] triangles lives in its parent's lane and indexes the precomputed
+//! triangles, stored contiguous in leaf order, each leaf's row by row ([`LeafTriangles`]) so
+//! that its triangles load side by side.
 //!
 //! Measured on the vineyard (`cargo bench -p vinebench-sim --bench raycast`, 2026-11-25, one
 //! thread): the 4-wide SSE tree with leaves of 4 triangles tested one by one that this
 //! replaced traced 3.05 M rays/s; 8-wide nodes with the AVX2 box test, 4.0 M (leaves of 8:
 //! 2–3% better than of 4, in paired runs); with the leaf's triangles tested at once too,
-//! 5.0 M. The portable kernel on this tree traces 2.7 M (the price on CPUs without AVX2:
+//! 4.85 M. (Each leaf in a block of eight lanes, aligned, gave 5.0 M, but most leaves hold
+//! two triangles, so the blocks took 14 MB against 4 MB for the packed rows.) The portable
+//! kernel on this tree traces 2.7 M (the price on CPUs without AVX2:
 //! x86-64 before 2013, other architectures). The traversal is bound by the latency of its
 //! chain of node tests and branches, not by memory: nodes quantized to 8 bits per plane
 //! (Ylitie, Karras & Laine 2017; half the cache lines), decoded exactly and rounded outwards,
@@ -46,7 +48,7 @@ mod traverse;
 use nalgebra::{Point3, Vector3};
 
 use super::ray::Ray;
-use super::triangle::TriBlock;
+use super::triangle::LeafTriangles;
 use super::{Hit, RayCaster};
 use crate::world::Mesh;
 use kernel::Portable;
@@ -60,10 +62,8 @@ use traverse::{Entry, SMALL_STACK};
 pub struct Bvh {
     /// Wide nodes, root first; empty when the mesh has no hittable triangle.
     nodes: Vec<WideNode>,
-    /// The leaves' triangles, precomputed, one block per leaf.
-    blocks: Vec<TriBlock>,
-    /// Triangles in the tree.
-    triangle_count: usize,
+    /// The leaves' triangles, precomputed.
+    triangles: LeafTriangles,
     /// Levels of wide nodes.
     depth: usize,
     /// Set when this CPU has AVX2: traversals then run the [`kernel::Avx2`] box test and are
@@ -80,16 +80,10 @@ impl Bvh {
     }
 
     /// The tree from its parts, with the kernel this CPU runs best.
-    fn from_parts(
-        nodes: Vec<WideNode>,
-        blocks: Vec<TriBlock>,
-        triangle_count: usize,
-        depth: usize,
-    ) -> Self {
+    fn from_parts(nodes: Vec<WideNode>, triangles: LeafTriangles, depth: usize) -> Self {
         Self {
             nodes,
-            blocks,
-            triangle_count,
+            triangles,
             depth,
             #[cfg(target_arch = "x86_64")]
             avx2: HasAvx2::detect(),
@@ -121,7 +115,7 @@ impl Bvh {
 
     /// Number of triangles in the hierarchy (degenerate ones are not).
     pub fn triangle_count(&self) -> usize {
-        self.triangle_count
+        self.triangles.len()
     }
 
     /// Levels of wide nodes (0 for an empty tree, 1 for a root alone).
@@ -160,7 +154,7 @@ impl std::fmt::Debug for Bvh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Bvh")
             .field("nodes", &self.nodes.len())
-            .field("triangles", &self.triangle_count)
+            .field("triangles", &self.triangles.len())
             .field("depth", &self.depth())
             .finish()
     }

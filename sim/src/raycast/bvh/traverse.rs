@@ -128,12 +128,16 @@ impl<'s, K: Kernel> Walker<'s, K> {
         self.sp += 1;
     }
 
-    /// Intersects the `count` triangles of leaf block `block`, keeping the best hit.
+    /// Intersects the `count` triangles of a leaf from `first`, keeping the best hit.
     #[inline(always)]
-    fn leaf(&mut self, bvh: &Bvh, block: u32, count: u8) {
-        let block = &bvh.blocks[block as usize];
-        self.kernel
-            .triangles(block, count, &mut self.best_t, &mut self.best_id);
+    fn leaf(&mut self, bvh: &Bvh, first: u32, count: u8) {
+        self.kernel.triangles(
+            &bvh.triangles,
+            first as usize,
+            usize::from(count),
+            &mut self.best_t,
+            &mut self.best_id,
+        );
     }
 }
 
