@@ -119,16 +119,20 @@ pub(crate) struct LeafTriangles {
 }
 
 impl LeafTriangles {
-    /// `tris` and their mesh `ids` in leaf order, and the leaves `(first, n)`, which must
+    /// `tris` and their mesh `ids`, stored in leaf order `order` (`order[i]`: the index in
+    /// `tris` of the triangle `i`-th in leaf order), and the leaves `(first, n)`, which must
     /// cover them exactly.
-    pub fn new(tris: &[Triangle], ids: &[u32], leaves: &[(usize, usize)]) -> Self {
+    pub fn new(tris: &[Triangle], ids: &[u32], order: &[u32], leaves: &[(usize, usize)]) -> Self {
         assert!(
-            tris.len() == ids.len() && leaves.iter().map(|l| l.1).sum::<usize>() == tris.len(),
+            tris.len() == ids.len()
+                && order.len() == tris.len()
+                && leaves.iter().map(|l| l.1).sum::<usize>() == tris.len(),
             "the leaves must cover the triangles, one id each"
         );
         let mut data = vec![0.0; ROWS * tris.len() + BLOCK];
         for &(first, n) in leaves {
-            for (lane, t) in tris[first..first + n].iter().enumerate() {
+            for (lane, &k) in order[first..first + n].iter().enumerate() {
+                let t = &tris[k as usize];
                 for (a, v) in [t.v0, t.e1, t.e2, t.n].iter().enumerate() {
                     for (k, &x) in v.iter().enumerate() {
                         data[ROWS * first + (3 * a + k) * n + lane] = x;
@@ -138,7 +142,7 @@ impl LeafTriangles {
         }
         Self {
             data,
-            ids: ids.to_vec(),
+            ids: order.iter().map(|&k| ids[k as usize]).collect(),
         }
     }
 

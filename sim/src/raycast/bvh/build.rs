@@ -40,14 +40,12 @@ pub(super) fn build(mesh: &Mesh) -> Bvh {
         prims.bounds.push(bounds);
     }
     if tris.is_empty() {
-        return Bvh::from_parts(Vec::new(), LeafTriangles::new(&[], &[], &[]), 0);
+        return Bvh::from_parts(Vec::new(), LeafTriangles::new(&[], &[], &[], &[]), 0);
     }
     let mut order: Vec<u32> = (0..u32::try_from(tris.len()).expect("checked above")).collect();
     let (root, pairs) = subtree(&prims, &mut order, 0, 0);
     let (nodes, depth) = collapse::collapse(&root, &pairs);
-    let ids: Vec<u32> = order.iter().map(|&k| ids[k as usize]).collect();
-    let tris: Vec<Triangle> = order.iter().map(|&k| tris[k as usize]).collect();
-    let triangles = LeafTriangles::new(&tris, &ids, &leaves(&nodes));
+    let triangles = LeafTriangles::new(&tris, &ids, &order, &leaves(&nodes));
     Bvh::from_parts(nodes, triangles, depth)
 }
 
