@@ -9,9 +9,8 @@
 
 use embree::{Packet, SceneOptions};
 use nalgebra::{Point3, Vector3};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 use sim::config::{RaycasterKind, SimConfig};
 use sim::raycast::{Bvh, EmbreeCaster, Hit, RayCaster};
 use sim::sensors::vlp16_directions;
@@ -230,17 +229,7 @@ fn random_rays(sim: &Simulation, bvh: &Bvh, embree: &EmbreeCaster, n: usize) -> 
     let mut rng = ChaCha8Rng::seed_from_u64(17);
     (0..n)
         .map(|_| {
-            let o = Point3::new(
-                rng.random_range(lo.x..hi.x),
-                rng.random_range(lo.y..hi.y),
-                rng.random_range(lo.z..hi.z + 3.0),
-            );
-            let d = loop {
-                let v: Vector3<f32> = Vector3::from_fn(|_, _| StandardNormal.sample(&mut rng));
-                if let Some(u) = v.try_normalize(1e-3) {
-                    break u;
-                }
-            };
+            let (o, d) = crate::random_ray(&mut rng, &lo, &hi);
             Case {
                 o,
                 d,

@@ -4,9 +4,8 @@
 //! sweeps cast in fans must equal the same rays cast one by one.
 
 use nalgebra::{Point3, Vector3};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 use sim::Simulation;
 use sim::config::SimConfig;
 use sim::raycast::{Bvh, RayCaster};
@@ -57,17 +56,7 @@ fn avx2_and_portable_kernels_give_identical_hits_on_the_vineyard() {
     let mut rng = ChaCha8Rng::seed_from_u64(23);
     let mut hits = 0;
     for i in 0..100_000 {
-        let o = Point3::new(
-            rng.random_range(lo.x..hi.x),
-            rng.random_range(lo.y..hi.y),
-            rng.random_range(lo.z..hi.z + 3.0),
-        );
-        let d = loop {
-            let v: Vector3<f32> = Vector3::from_fn(|_, _| StandardNormal.sample(&mut rng));
-            if let Some(u) = v.try_normalize(1e-3) {
-                break u;
-            }
-        };
+        let (o, d) = crate::random_ray(&mut rng, &lo, &hi);
         let a = fast.cast(&o, &d, 0.0, 200.0);
         assert_eq!(
             a,

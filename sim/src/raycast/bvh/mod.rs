@@ -188,6 +188,12 @@ impl RayCaster for Bvh {
             out.len() >= dirs.len(),
             "cast_fan: `out` shorter than `dirs`"
         );
+        let rays = Fan {
+            origin,
+            dirs,
+            t_min,
+            t_max,
+        };
         let out = &mut out[..dirs.len()];
         self.with_stack(|stack| {
             #[cfg(target_arch = "x86_64")]
@@ -195,54 +201,51 @@ impl RayCaster for Bvh {
                 // SAFETY: `cpu` proves this CPU has AVX2.
                 #[allow(unsafe_code)]
                 unsafe {
-                    fan_avx2(self, origin, dirs, t_min, t_max, out, stack, cpu);
+                    fan_avx2(self, &rays, out, stack, cpu);
                 }
                 return;
             }
-            fan(self, origin, dirs, t_min, t_max, out, stack, |ray| {
-                Portable::new(ray, t_min)
-            });
+            fan(self, &rays, out, stack, |ray| Portable::new(ray, t_min));
         });
     }
 }
 
+/// The rays of one [`RayCaster::cast_fan`] call.
+struct Fan<'a> {
+    origin: &'a Point3<f32>,
+    dirs: &'a [Vector3<f32>],
+    t_min: f32,
+    t_max: f32,
+}
+
 /// Casts every ray of the fan with the kernel `kernel` makes for it.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn fan<K: kernel::Kernel>(
     bvh: &Bvh,
-    origin: &Point3<f32>,
-    dirs: &[Vector3<f32>],
-    t_min: f32,
-    t_max: f32,
+    rays: &Fan<'_>,
     out: &mut [Option<Hit>],
     stack: &mut [Entry],
     kernel: impl Fn(&Ray) -> K,
 ) {
-    for (slot, dir) in out.iter_mut().zip(dirs) {
-        let ray = Ray::new(origin, dir);
-        *slot = traverse::closest(bvh, kernel(&ray), t_min, t_max, stack);
+    for (slot, dir) in out.iter_mut().zip(rays.dirs) {
+        let ray = Ray::new(rays.origin, dir);
+        *slot = traverse::closest(bvh, kernel(&ray), rays.t_min, rays.t_max, stack);
     }
 }
 
-/// [`fan`] with the AVX2 box test, the whole traversal compiled for AVX2.
+/// [`fan`] with the AVX2 kernel, the whole traversal compiled for AVX2.
 ///
 /// # Safety
-/// The CPU must have AVX2, which `_cpu` proves.
+/// The CPU must have AVX2, which `cpu` proves.
 #[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments, unsafe_code)]
+#[allow(unsafe_code)]
 #[target_feature(enable = "avx2")]
 unsafe fn fan_avx2(
     bvh: &Bvh,
-    origin: &Point3<f32>,
-    dirs: &[Vector3<f32>],
-    t_min: f32,
-    t_max: f32,
+    rays: &Fan<'_>,
     out: &mut [Option<Hit>],
     stack: &mut [Entry],
     cpu: HasAvx2,
 ) {
-    fan(bvh, origin, dirs, t_min, t_max, out, stack, |ray| {
-        Avx2::new(ray, t_min, cpu)
-    });
+    fan(bvh, rays, out, stack, |ray| Avx2::new(ray, rays.t_min, cpu));
 }
