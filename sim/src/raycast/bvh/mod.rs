@@ -12,18 +12,18 @@
 //! that its triangles load side by side.
 //!
 //! Measured on the vineyard (`cargo bench -p vinebench-sim --bench raycast`, 2026-11-25, one
-//! thread): the 4-wide SSE tree with leaves of 4 triangles tested one by one that this
-//! replaced traced 3.05 M rays/s; 8-wide nodes with the AVX2 box test, 4.0 M (leaves of 8:
-//! 2–3% better than of 4, in paired runs); with the leaf's triangles tested at once too,
-//! 4.85 M. (Each leaf in a block of eight lanes, aligned, gave 5.0 M, but most leaves hold
-//! two triangles, so the blocks took 14 MB against 4 MB for the packed rows.) The portable
-//! kernel on this tree traces 2.7 M (the price on CPUs without AVX2:
-//! x86-64 before 2013, other architectures). The traversal is bound by the latency of its
-//! chain of node tests and branches, not by memory: nodes quantized to 8 bits per plane
-//! (Ylitie, Karras & Laine 2017; half the cache lines), decoded exactly and rounded outwards,
-//! were 1.4x slower with 4 children and with 8, the decoding sitting on that chain. Spatial
-//! splits matter little here: Embree without them (its medium quality) traces 5% slower than
-//! with.
+//! thread): the 4-wide SSE tree with leaves of 4 triangles tested one by one that this replaced
+//! traced 3.05 M rays/s; 8-wide nodes with the AVX2 box test, 4.0 M (leaves of 8: 2–3% better
+//! than of 4, in paired runs); with the leaf's triangles tested at once too, 4.85 M. (Each leaf
+//! in a block of eight lanes, aligned, gave 5.0 M, but most leaves hold two triangles, so the
+//! blocks took 14 MB against 4 MB for the packed rows.) The portable kernel on this tree traces
+//! 2.6–2.7 M, slower than the 4-wide tree's 3.05 M: the price on CPUs without AVX2 (x86-64
+//! before 2013, other architectures), which could get a 4-wide tree of their own. The traversal
+//! is bound by the latency of its chain of node tests and branches, not by memory: nodes
+//! quantized to 8 bits per plane (Ylitie, Karras & Laine 2017; half the cache lines), decoded
+//! exactly and rounded outwards, were 1.4x slower with 4 children and with 8, the decoding
+//! sitting on that chain. Spatial splits matter little here: Embree without them (its medium
+//! quality) traces 5% slower than with.
 //!
 //! Tried before on the 4-wide tree and left out: packets of four rays of a lidar column
 //! traversed together (Wald et al. 2001; 1.5x slower: the rays of a column diverge too fast to
