@@ -131,8 +131,8 @@ impl LeafTriangles {
         );
         let mut data = vec![0.0; ROWS * tris.len() + BLOCK];
         for &(first, n) in leaves {
-            for (lane, &k) in order[first..first + n].iter().enumerate() {
-                let t = &tris[k as usize];
+            for (lane, &src) in order[first..first + n].iter().enumerate() {
+                let t = &tris[src as usize];
                 for (a, v) in [t.v0, t.e1, t.e2, t.n].iter().enumerate() {
                     for (k, &x) in v.iter().enumerate() {
                         data[ROWS * first + (3 * a + k) * n + lane] = x;
@@ -159,9 +159,8 @@ impl LeafTriangles {
     /// Triangle `lane` of the leaf of `n` triangles from `first`, exactly as it was stored.
     #[inline(always)]
     pub fn get(&self, first: usize, n: usize, lane: usize) -> Triangle {
-        let at = |a: usize| -> [f32; 3] {
-            std::array::from_fn(|k| self.data[ROWS * first + (3 * a + k) * n + lane])
-        };
+        let at =
+            |a: usize| -> [f32; 3] { std::array::from_fn(|k| self.row(first, n, 3 * a + k)[lane]) };
         Triangle {
             v0: at(0),
             e1: at(1),

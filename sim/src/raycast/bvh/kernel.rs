@@ -87,9 +87,9 @@ mod avx2 {
 
     use std::arch::x86_64::{
         __m256, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _mm256_add_ps, _mm256_and_ps,
-        _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
-        _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
-        _mm256_xor_ps,
+        _mm256_cmp_ps, _mm256_cvtss_f32, _mm256_div_ps, _mm256_loadu_ps, _mm256_max_ps,
+        _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_storeu_ps,
+        _mm256_sub_ps, _mm256_xor_ps,
     };
 
     use super::{Kernel, LeafTriangles, WIDTH, WideNode, better};
@@ -117,7 +117,6 @@ mod avx2 {
         d: [__m256; 3],
         inv: [__m256; 3],
         t_min: __m256,
-        t_min_scalar: f32,
         neg: [bool; 3],
     }
 
@@ -131,7 +130,6 @@ mod avx2 {
                     d: ray.d.map(|x| _mm256_set1_ps(x)),
                     inv: ray.inv_d.map(|x| _mm256_set1_ps(x)),
                     t_min: _mm256_set1_ps(t_min),
-                    t_min_scalar: t_min,
                     neg: ray.neg(),
                 }
             }
@@ -152,16 +150,9 @@ mod avx2 {
                         self.inv[k],
                     )
                 };
-                let planes = |k: usize| {
-                    if self.neg[k] {
-                        (&node.hi[k], &node.lo[k])
-                    } else {
-                        (&node.lo[k], &node.hi[k])
-                    }
-                };
-                let (nx, fx) = planes(0);
-                let (ny, fy) = planes(1);
-                let (nz, fz) = planes(2);
+                let (nx, fx) = node.planes(&self.neg, 0);
+                let (ny, fy) = node.planes(&self.neg, 1);
+                let (nz, fz) = node.planes(&self.neg, 2);
                 let near = _mm256_max_ps(
                     _mm256_max_ps(slab(nx, 0), slab(ny, 1)),
                     _mm256_max_ps(slab(nz, 2), self.t_min),
@@ -193,7 +184,7 @@ mod avx2 {
         ) {
             // SAFETY: an `Avx2` exists only on a CPU with AVX2 (see `new`); the loads and the
             // store read and write `[f32; 8]` arrays, unaligned accesses being allowed.
-            let (hits, t) = unsafe {
+            let (hits, t, t_min) = unsafe {
                 // Vector `a` (v0, e1, e2, n) of the leaf's triangles, lane by lane.
                 let load = |a: usize| -> [__m256; 3] {
                     std::array::from_fn(|k| _mm256_loadu_ps(tris.row(first, n, 3 * a + k).as_ptr()))
@@ -238,14 +229,14 @@ mod avx2 {
                 if hits != 0 {
                     _mm256_storeu_ps(t.as_mut_ptr(), _mm256_div_ps(dot(&c, &normal), den));
                 }
-                (hits, t)
+                (hits, t, _mm256_cvtss_f32(self.t_min))
             };
             let mut rest = hits;
             while rest != 0 {
                 let lane = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
                 let id = tris.id(first + lane);
-                if t[lane] >= self.t_min_scalar && better(t[lane], id, *best_t, *best_id) {
+                if t[lane] >= t_min && better(t[lane], id, *best_t, *best_id) {
                     *best_t = t[lane];
                     *best_id = id;
                 }

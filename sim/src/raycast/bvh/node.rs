@@ -62,6 +62,17 @@ impl WideNode {
         }
     }
 
+    /// The planes of axis `k` through which a ray enters and leaves the boxes, `(near, far)`:
+    /// `hi[k]` first if the ray goes towards -k (`neg[k]`).
+    #[inline(always)]
+    pub fn planes(&self, neg: &[bool; 3], k: usize) -> (&[f32; WIDTH], &[f32; WIDTH]) {
+        if neg[k] {
+            (&self.hi[k], &self.lo[k])
+        } else {
+            (&self.lo[k], &self.hi[k])
+        }
+    }
+
     /// Slab test (Williams et al. 2005) of all the boxes at once: entry distances, and a bit
     /// mask of the boxes the ray enters within `[t_min, t_max]`. `neg[k]`: the ray goes
     /// towards -k, so it enters through `hi[k]`; picking the planes by sign instead of min/max
@@ -74,16 +85,9 @@ impl WideNode {
         t_min: f32,
         t_max: f32,
     ) -> ([f32; WIDTH], u32) {
-        let planes = |k: usize| {
-            if neg[k] {
-                (&self.hi[k], &self.lo[k])
-            } else {
-                (&self.lo[k], &self.hi[k])
-            }
-        };
-        let (nx, fx) = planes(0);
-        let (ny, fy) = planes(1);
-        let (nz, fz) = planes(2);
+        let (nx, fx) = self.planes(neg, 0);
+        let (ny, fy) = self.planes(neg, 1);
+        let (nz, fz) = self.planes(neg, 2);
         let [ox, oy, oz] = ray.o;
         let [ix, iy, iz] = ray.inv_d;
         let mut near = [0.0f32; WIDTH];
