@@ -66,6 +66,7 @@ mod depth_noise;
 mod ground;
 mod image;
 mod intrinsics;
+mod lanes;
 mod msaa;
 mod prefilter;
 mod raster;

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use super::chunks::Chunks;
 use super::intrinsics::Intrinsics;
+use super::lanes::F4;
 
 /// Near clipping plane of the renderer (the depth image's own limit is applied later).
 pub(crate) const NEAR_M: f32 = 0.05;
@@ -438,6 +439,7 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
     q_buf: &mut [f32],
     id_buf: &mut [u32],
 ) {
+    const { assert!(N % 4 == 0, "whole vectors of four samples") };
     let rows = q_buf.len() / (width * N);
     let (y0, y1) = (first_row as i32, (first_row + rows) as i32 - 1);
     let dx = pattern.map(|o| o[0]);
@@ -466,7 +468,19 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
         }
         let y_min = t.y[0].min(t.y[1]).min(t.y[2]);
         let y_max = t.y[0].max(t.y[1]).max(t.y[2]);
+        // Four samples at a time, lane by lane the scalar operations (`F4`).
+        let edge = |e: [f32; 3]| e.map(F4::splat);
+        let (left, right) = (left.map(edge), right.map(edge));
         let (x_lo, x_hi) = (t.x_lo as f32, t.x_hi as f32);
+        let (lo_min, lo_max) = (F4::splat(x_lo), F4::splat(x_hi + 1.0));
+        let (hi_min, hi_max) = (F4::splat(x_lo - 1.0), F4::splat(x_hi));
+        let (y_min, y_max) = (F4::splat(y_min), F4::splat(y_max));
+        let (eps, offset, none) = (
+            F4::splat(EDGE_EPS),
+            F4::splat(OFFSET_F),
+            F4::splat(f32::NEG_INFINITY),
+        );
+        let (qy, y0_t) = (F4::splat(t.qy), F4::splat(t.y[0]));
         // 1 / z at sample `s` of column `px` on this row: `q_row[s] + qx px`.
         let q_col = dx.map(|dx| t.q0 + t.qx * (dx - t.x[0]));
         for py in t.y_lo.max(y0)..=t.y_hi.min(y1) {
@@ -479,30 +493,28 @@ pub(crate) fn rasterize_band_ms<const N: usize>(
             // outcome as with integers, and no conversion per sample (branch-free: the lanes
             // run as one vector). A sample row outside the triangle gets -inf: never covered.
             let (mut y_lo, mut y_hi, mut q_row) = ([0.0f32; N], [0.0f32; N], [0.0f32; N]);
-            for s in 0..N {
-                let fy = py as f32 + dy[s];
-                let at = |e: &[f32; 3]| e[0] + e[2] * (fy - e[1]);
-                let lo = at(&left[0]).max(at(&left[1])) - EDGE_EPS - dx[s];
-                let hi = at(&right[0]).min(at(&right[1])) + EDGE_EPS - dx[s];
-                let lo = lo.clamp(x_lo, x_hi + 1.0);
-                let hi = hi.clamp(x_lo - 1.0, x_hi);
-                let rows_in = (fy >= y_min) & (fy <= y_max);
-                y_lo[s] = if rows_in {
-                    OFFSET_F - lo
-                } else {
-                    f32::NEG_INFINITY
-                };
-                y_hi[s] = if rows_in {
-                    hi + OFFSET_F
-                } else {
-                    f32::NEG_INFINITY
-                };
-                q_row[s] = q_col[s] + t.qy * (fy - t.y[0]);
-            }
             // The columns from the smallest ceiling to the largest floor (a NaN bound, from
             // a degenerate edge, covers nothing, as its comparisons fail).
-            let max_lo = y_lo.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-            let max_hi = y_hi.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            let (mut max_lo, mut max_hi) = (f32::NEG_INFINITY, f32::NEG_INFINITY);
+            let py_f = F4::splat(py as f32);
+            for c in (0..N).step_by(4) {
+                let lanes = |a: &[f32; N]| F4::new([a[c], a[c + 1], a[c + 2], a[c + 3]]);
+                let fy = py_f + lanes(&dy);
+                let at = |e: &[F4; 3]| e[0] + e[2] * (fy - e[1]);
+                let lo = at(&left[0]).max(at(&left[1])) - eps - lanes(&dx);
+                let hi = at(&right[0]).min(at(&right[1])) + eps - lanes(&dx);
+                let lo = lo.clamp(lo_min, lo_max);
+                let hi = hi.clamp(hi_min, hi_max);
+                let rows_in = fy.ge(y_min) & fy.le(y_max);
+                let lo = F4::select(rows_in, offset - lo, none);
+                let hi = F4::select(rows_in, hi + offset, none);
+                max_lo = max_lo.max(lo.max_lane());
+                max_hi = max_hi.max(hi.max_lane());
+                y_lo[c..c + 4].copy_from_slice(&lo.to_array());
+                y_hi[c..c + 4].copy_from_slice(&hi.to_array());
+                let q = lanes(&q_col) + qy * (fy - y0_t);
+                q_row[c..c + 4].copy_from_slice(&q.to_array());
+            }
             if !(max_lo > 0.0 && max_hi > 0.0) {
                 continue;
             }
