@@ -140,10 +140,62 @@ pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// 2D value noise in [0, 1) at lattice spacing 1.
 pub(super) fn noise2(x: f32, y: f32, salt: u32) -> f32 {
     let ((xf, xi), (yf, yi)) = (floor(x), floor(y));
-    let (fx, fy) = (smooth(x - xf), smooth(y - yf));
-    let a = lerp(hash(xi, yi, 0, salt), hash(xi + 1, yi, 0, salt), fx);
-    let b = lerp(hash(xi, yi + 1, 0, salt), hash(xi + 1, yi + 1, 0, salt), fx);
+    noise2_in(cell2(xi, yi, salt), x - xf, y - yf)
+}
+
+/// The lattice values at the corners of cell `(xi, yi)`: `(xi, yi)`, `(xi + 1, yi)`,
+/// `(xi, yi + 1)`, `(xi + 1, yi + 1)`.
+fn cell2(xi: i32, yi: i32, salt: u32) -> [f32; 4] {
+    [
+        hash(xi, yi, 0, salt),
+        hash(xi + 1, yi, 0, salt),
+        hash(xi, yi + 1, 0, salt),
+        hash(xi + 1, yi + 1, 0, salt),
+    ]
+}
+
+/// [`noise2`] in a cell of lattice values `c` ([`cell2`]) at `(fx, fy)` from its corner.
+#[inline(always)]
+fn noise2_in(c: [f32; 4], fx: f32, fy: f32) -> f32 {
+    let (fx, fy) = (smooth(fx), smooth(fy));
+    let a = lerp(c[0], c[1], fx);
+    let b = lerp(c[2], c[3], fx);
     lerp(a, b, fy)
+}
+
+/// [`noise2`] of one salt with the lattice values of the cells `[-HALF, HALF)^2` looked up
+/// instead of hashed (the same values; the hash outside). For noise evaluated at every
+/// pixel of a large surface, such as the ground's tone: its four hashes were a third of the
+/// ground's lookup.
+#[derive(Debug, Clone)]
+pub(super) struct Noise2Table {
+    salt: u32,
+    cells: Vec<[f32; 4]>,
+}
+
+impl Noise2Table {
+    const HALF: i32 = 64;
+
+    pub fn new(salt: u32) -> Self {
+        let side = 2 * Self::HALF;
+        let cells = (0..side * side)
+            .map(|k| cell2(k % side - Self::HALF, k / side - Self::HALF, salt))
+            .collect();
+        Self { salt, cells }
+    }
+
+    /// `noise2(x, y, salt)`, bit for bit.
+    pub fn at(&self, x: f32, y: f32) -> f32 {
+        let ((xf, xi), (yf, yi)) = (floor(x), floor(y));
+        let (i, j) = (xi + Self::HALF, yi + Self::HALF);
+        let side = 2 * Self::HALF;
+        let c = if (0..side).contains(&i) && (0..side).contains(&j) {
+            self.cells[(j * side + i) as usize]
+        } else {
+            cell2(xi, yi, self.salt)
+        };
+        noise2_in(c, x - xf, y - yf)
+    }
 }
 
 /// 3D value noise in [0, 1) at lattice spacing 1.
@@ -374,4 +426,40 @@ fn post(t: [f32; 3]) -> [f32; 3] {
 pub(super) fn wire(t: [f32; 3]) -> [f32; 3] {
     let n = noise3(t.map(|c| c * 5.0), 71);
     scale([0.72, 0.73, 0.75], 0.85 + 0.2 * n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The table gives `noise2`'s bits inside its cells, on their edges and beyond them.
+    #[test]
+    fn tabled_noise_is_the_hashed_noise() {
+        let table = Noise2Table::new(1);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let edge = Noise2Table::HALF as f32;
+        let mut points: Vec<(f32, f32)> = (0..50_000)
+            .map(|_| {
+                (
+                    rng.random_range(-1.5 * edge..1.5 * edge),
+                    rng.random_range(-1.5 * edge..1.5 * edge),
+                )
+            })
+            .collect();
+        points.extend([
+            (-edge, -edge),
+            (edge - 1e-3, edge - 1e-3),
+            (edge, 0.0),
+            (0.0, -edge - 1e-3),
+            (3.0, -7.0),
+        ]);
+        for (x, y) in points {
+            assert_eq!(
+                table.at(x, y).to_bits(),
+                noise2(x, y, 1).to_bits(),
+                "at ({x}, {y})"
+            );
+        }
+    }
 }

@@ -22,7 +22,7 @@ mod tile;
 use std::sync::OnceLock;
 
 use super::shading::Light;
-use super::texture::noise2;
+use super::texture::Noise2Table;
 use crate::world::Material;
 use mips::Mips;
 use relief::relief;
@@ -46,12 +46,21 @@ const LOD_BIAS: f32 = 0.5;
 pub(crate) struct GroundTexture {
     soil: Mips,
     grass: Mips,
+    /// The tone's noise (see [`tone_noise`]).
+    tone: &'static Noise2Table,
 }
 
 /// The soil and grass patches, generated once per process: they depend on constants only.
 fn tiles() -> &'static (Tile, Tile) {
     static TILES: OnceLock<(Tile, Tile)> = OnceLock::new();
     TILES.get_or_init(|| rayon::join(soil::generate, grass::generate))
+}
+
+/// The tone's noise (salt 1), tabulated over the lattice cells within about 90 m of the
+/// origin (the vineyard and its surroundings), once per process.
+fn tone_noise() -> &'static Noise2Table {
+    static TONE: OnceLock<Noise2Table> = OnceLock::new();
+    TONE.get_or_init(|| Noise2Table::new(1))
 }
 
 impl GroundTexture {
@@ -62,6 +71,7 @@ impl GroundTexture {
         Self {
             soil: mips(soil, SOIL_TEXEL_M),
             grass: mips(grass, GRASS_TEXEL_M),
+            tone: tone_noise(),
         }
     }
 
@@ -77,7 +87,7 @@ impl GroundTexture {
         };
         let (c, relief) = mips.sample(u, v, per_m, LOD_BIAS);
         // Moist and dry patches over metres.
-        let tone = 0.88 + 0.24 * noise2(x * 0.7, y * 0.7, 1);
+        let tone = 0.88 + 0.24 * self.tone.at(x * 0.7, y * 0.7);
         (c.map(|c| c * tone), relief)
     }
 }
