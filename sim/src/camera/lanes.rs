@@ -1,9 +1,10 @@
 //! Four `f32` lanes that compute exactly what Rust's scalar operations compute lane by lane,
 //! NaN included: [`F4::max`] and [`F4::min`] are `f32::max` and `f32::min` (a NaN operand
 //! yields the other), [`F4::clamp`] is `f32::clamp` (NaN passes through), comparisons are
-//! false on NaN. On x86-64 they are SSE2 instructions (every x86-64 CPU has them); elsewhere
+//! false on NaN; division and square root are IEEE's, as in scalar code. On x86-64 they are SSE2 instructions (every x86-64 CPU has them); elsewhere
 //! the same operations one lane after the other. The rasterizer's per-row set-up, where the
-//! compiler left most of the scalar code scalar, runs on them.
+//! compiler left most of the scalar code scalar, and the sky's shading, four pixels at once,
+//! run on them.
 //!
 //! Signed zeros: `f32::max(0.0, -0.0)` may return either; these do not promise which one
 //! either (no caller can tell: they only add to, compare or truncate the result).
@@ -74,8 +75,20 @@ mod imp {
         unsafe { _mm_min_ps(hi, _mm_max_ps(lo, x)) }
     }
 
+    pub(super) fn div(a: V, b: V) -> V {
+        unsafe { _mm_div_ps(a, b) }
+    }
+
+    pub(super) fn sqrt(a: V) -> V {
+        unsafe { _mm_sqrt_ps(a) }
+    }
+
     pub(super) fn ge(a: V, b: V) -> V {
         unsafe { _mm_cmpge_ps(a, b) }
+    }
+
+    pub(super) fn gt(a: V, b: V) -> V {
+        unsafe { _mm_cmpgt_ps(a, b) }
     }
 
     pub(super) fn le(a: V, b: V) -> V {
@@ -84,6 +97,10 @@ mod imp {
 
     pub(super) fn and(a: V, b: V) -> V {
         unsafe { _mm_and_ps(a, b) }
+    }
+
+    pub(super) fn all(m: V) -> bool {
+        unsafe { _mm_movemask_ps(m) == 0b1111 }
     }
 
     /// The largest lane that is not NaN (`-inf` if none).
@@ -153,8 +170,20 @@ mod imp {
         [0, 1, 2, 3].map(|k| x[k].clamp(lo[k], hi[k]))
     }
 
+    pub(super) fn div(a: V, b: V) -> V {
+        zip(a, b, |a, b| a / b)
+    }
+
+    pub(super) fn sqrt(a: V) -> V {
+        a.map(f32::sqrt)
+    }
+
     pub(super) fn ge(a: V, b: V) -> V {
         zip(a, b, |a, b| mask(a >= b))
+    }
+
+    pub(super) fn gt(a: V, b: V) -> V {
+        zip(a, b, |a, b| mask(a > b))
     }
 
     pub(super) fn le(a: V, b: V) -> V {
@@ -163,6 +192,10 @@ mod imp {
 
     pub(super) fn and(a: V, b: V) -> V {
         zip(a, b, |a, b| f32::from_bits(a.to_bits() & b.to_bits()))
+    }
+
+    pub(super) fn all(m: V) -> bool {
+        m.into_iter().all(on)
     }
 
     pub(super) fn max_lane(v: V) -> f32 {
@@ -205,8 +238,18 @@ impl F4 {
     }
 
     #[inline(always)]
+    pub fn sqrt(self) -> Self {
+        Self(imp::sqrt(self.0))
+    }
+
+    #[inline(always)]
     pub fn ge(self, other: Self) -> M4 {
         M4(imp::ge(self.0, other.0))
+    }
+
+    #[inline(always)]
+    pub fn gt(self, other: Self) -> M4 {
+        M4(imp::gt(self.0, other.0))
     }
 
     #[inline(always)]
@@ -224,6 +267,14 @@ impl F4 {
     #[inline(always)]
     pub fn max_lane(self) -> f32 {
         imp::max_lane(self.0)
+    }
+}
+
+impl M4 {
+    /// Whether every lane holds.
+    #[inline(always)]
+    pub fn all(self) -> bool {
+        imp::all(self.0)
     }
 }
 
@@ -251,6 +302,15 @@ impl std::ops::Sub for F4 {
     #[inline(always)]
     fn sub(self, other: Self) -> Self {
         Self(imp::sub(self.0, other.0))
+    }
+}
+
+impl std::ops::Div for F4 {
+    type Output = Self;
+
+    #[inline(always)]
+    fn div(self, other: Self) -> Self {
+        Self(imp::div(self.0, other.0))
     }
 }
 
@@ -313,7 +373,15 @@ mod tests {
             let sum = (va + vb).to_array();
             let diff = (va - vb).to_array();
             let prod = (va * vb).to_array();
+            let quot = (va / vb).to_array();
+            let root = va.sqrt().to_array();
+            let strict = F4::select(va.gt(vb), va, vb).to_array();
             let picked = F4::select(va.ge(vb) & va.le(F4::splat(5.0)), va, vb).to_array();
+            assert_eq!(
+                va.ge(vb).all(),
+                (0..4).all(|k| a[k] >= b[k]),
+                "all lanes of {a:?} >= {b:?}"
+            );
             for k in 0..4 {
                 let case = format!("lane {k}: a {}, b {}", a[k], b[k]);
                 assert!(same(max[k], a[k].max(b[k])), "max, {case}: {}", max[k]);
@@ -323,6 +391,10 @@ mod tests {
                 assert!(same(sum[k], a[k] + b[k]), "add, {case}");
                 assert!(same(diff[k], a[k] - b[k]), "sub, {case}");
                 assert!(same(prod[k], a[k] * b[k]), "mul, {case}");
+                assert!(same(quot[k], a[k] / b[k]), "div, {case}");
+                assert!(same(root[k], a[k].sqrt()), "sqrt, {case}");
+                let p = if a[k] > b[k] { a[k] } else { b[k] };
+                assert!(same(strict[k], p), "gt, {case}");
                 let p = if a[k] >= b[k] && a[k] <= 5.0 {
                     a[k]
                 } else {

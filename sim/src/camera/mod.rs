@@ -254,24 +254,30 @@ impl RgbdCamera {
                         // The row's samples, `[column][sample]` (one sample: the same).
                         let (row_ids, row_q) =
                             (&ids[r * n * w..][..n * w], &inv_z[r * n * w..][..n * w]);
-                        for (u, ((((lin, z), cos), pixel_ids), pixel_q)) in linear
-                            .iter_mut()
-                            .zip(z.iter_mut())
-                            .zip(cos.iter_mut())
-                            .zip(row_ids.chunks_exact(n))
-                            .zip(row_q.chunks_exact(n))
-                            .enumerate()
-                        {
+                        let mut u = 0;
+                        while u < w {
+                            // Four pixels of sky at once where they lie above the tree line.
+                            if u + 4 <= w
+                                && row_ids[u * n..(u + 4) * n].iter().all(|&id| id == u32::MAX)
+                                && let Some(sky) = shader.sky4(u as u32 as f32, y)
+                            {
+                                linear[u..u + 4].copy_from_slice(&sky);
+                                z[u..u + 4].fill(0.0);
+                                cos[u..u + 4].fill(0.0);
+                                u += 4;
+                                continue;
+                            }
                             let s = msaa::resolve(
                                 &shader,
                                 pattern,
                                 (u as u32 as f32, y),
-                                pixel_ids,
-                                pixel_q,
+                                &row_ids[u * n..][..n],
+                                &row_q[u * n..][..n],
                             );
-                            *lin = s.rgb;
-                            *z = s.depth;
-                            *cos = s.cos_incidence;
+                            linear[u] = s.rgb;
+                            z[u] = s.depth;
+                            cos[u] = s.cos_incidence;
+                            u += 1;
                         }
                         effects.colour_row(v * w, linear, rgb);
                     }

@@ -85,7 +85,7 @@ pub(crate) struct View {
     pub fy: f32,
     pub cx: f32,
     pub cy: f32,
-    inv_fx: f32,
+    pub inv_fx: f32,
     pub inv_fy: f32,
     pub width: usize,
     pub height: usize,

@@ -359,10 +359,13 @@ pub(crate) fn tree_line(d: &[f32; 3]) -> Option<[f32; 3]> {
     Some(tree_colour(leaf))
 }
 
+/// Above this elevation sine no distant tree reaches: sky only.
+pub(super) const TREE_LINE_TOP: f32 = 0.03;
+
 /// The tree line's coordinates `(x, y)` in the direction `d` (30 per radian of azimuth)
 /// and its crown height (elevation sine) there; `None` far from the horizon.
 pub(super) fn tree_crown(d: &[f32; 3]) -> Option<(f32, f32, f32)> {
-    if d[2] > 0.03 || d[2] < -0.05 {
+    if d[2] > TREE_LINE_TOP || d[2] < -0.05 {
         return None;
     }
     let h = (d[0] * d[0] + d[1] * d[1]).sqrt().max(1e-6);
