@@ -91,6 +91,15 @@ mod imp {
         unsafe { _mm_cmpgt_ps(a, b) }
     }
 
+    pub(super) fn lt(a: V, b: V) -> V {
+        unsafe { _mm_cmplt_ps(a, b) }
+    }
+
+    /// Clears the sign bits.
+    pub(super) fn abs(a: V) -> V {
+        unsafe { _mm_andnot_ps(_mm_set1_ps(-0.0), a) }
+    }
+
     pub(super) fn le(a: V, b: V) -> V {
         unsafe { _mm_cmple_ps(a, b) }
     }
@@ -186,6 +195,14 @@ mod imp {
         zip(a, b, |a, b| mask(a > b))
     }
 
+    pub(super) fn lt(a: V, b: V) -> V {
+        zip(a, b, |a, b| mask(a < b))
+    }
+
+    pub(super) fn abs(a: V) -> V {
+        a.map(f32::abs)
+    }
+
     pub(super) fn le(a: V, b: V) -> V {
         zip(a, b, |a, b| mask(a <= b))
     }
@@ -250,6 +267,22 @@ impl F4 {
     #[inline(always)]
     pub fn gt(self, other: Self) -> M4 {
         M4(imp::gt(self.0, other.0))
+    }
+
+    #[inline(always)]
+    pub fn lt(self, other: Self) -> M4 {
+        M4(imp::lt(self.0, other.0))
+    }
+
+    #[inline(always)]
+    pub fn abs(self) -> Self {
+        Self(imp::abs(self.0))
+    }
+
+    /// `f32::is_finite` lane by lane (`abs < inf`).
+    #[inline(always)]
+    pub fn is_finite(self) -> M4 {
+        self.abs().lt(Self::splat(f32::INFINITY))
     }
 
     #[inline(always)]
@@ -376,6 +409,9 @@ mod tests {
             let quot = (va / vb).to_array();
             let root = va.sqrt().to_array();
             let strict = F4::select(va.gt(vb), va, vb).to_array();
+            let less = F4::select(va.lt(vb), va, vb).to_array();
+            let abs = va.abs().to_array();
+            let finite = F4::select(va.is_finite(), va, vb).to_array();
             let picked = F4::select(va.ge(vb) & va.le(F4::splat(5.0)), va, vb).to_array();
             assert_eq!(
                 va.ge(vb).all(),
@@ -395,6 +431,11 @@ mod tests {
                 assert!(same(root[k], a[k].sqrt()), "sqrt, {case}");
                 let p = if a[k] > b[k] { a[k] } else { b[k] };
                 assert!(same(strict[k], p), "gt, {case}");
+                let p = if a[k] < b[k] { a[k] } else { b[k] };
+                assert!(same(less[k], p), "lt, {case}");
+                assert!(same(abs[k], a[k].abs()), "abs, {case}");
+                let f = if a[k].is_finite() { a[k] } else { b[k] };
+                assert!(same(finite[k], f), "is_finite, {case}");
                 let p = if a[k] >= b[k] && a[k] <= 5.0 {
                     a[k]
                 } else {

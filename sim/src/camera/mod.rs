@@ -267,6 +267,26 @@ impl RgbdCamera {
                                 u += 4;
                                 continue;
                             }
+                            // Four pixels of one ground triangle at once.
+                            let id = row_ids[u * n];
+                            if u + 4 <= w
+                                && id != u32::MAX
+                                && row_ids[u * n..(u + 4) * n].iter().all(|&i| i == id)
+                            {
+                                let q = &row_q[u * n..(u + 4) * n];
+                                let inv_z = [0, 1, 2, 3]
+                                    .map(|l| q[l * n..][..n].iter().sum::<f32>() / n as f32);
+                                if let Some(shaded) = shader.ground4(u as u32 as f32, y, id, inv_z)
+                                {
+                                    for (l, s) in shaded.iter().enumerate() {
+                                        linear[u + l] = s.rgb;
+                                        z[u + l] = s.depth;
+                                        cos[u + l] = s.cos_incidence;
+                                    }
+                                    u += 4;
+                                    continue;
+                                }
+                            }
                             let s = msaa::resolve(
                                 &shader,
                                 pattern,
