@@ -133,7 +133,7 @@ impl ShadowMap {
     }
 
     /// Fraction of the sun seen from world point `p`, in [0, 1].
-    #[inline]
+    #[inline(always)]
     pub fn lit(&self, p: &[f32; 3]) -> f32 {
         let x = (dot(&self.u, p) - self.origin[0]) * PER_TEXEL - 0.5;
         let y = (dot(&self.v, p) - self.origin[1]) * PER_TEXEL - 0.5;
