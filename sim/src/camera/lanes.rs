@@ -1,10 +1,10 @@
 //! Four `f32` lanes that compute exactly what Rust's scalar operations compute lane by lane,
 //! NaN included: [`F4::max`] and [`F4::min`] are `f32::max` and `f32::min` (a NaN operand
 //! yields the other), [`F4::clamp`] is `f32::clamp` (NaN passes through), comparisons are
-//! false on NaN; division and square root are IEEE's, as in scalar code. On x86-64 they are SSE2 instructions (every x86-64 CPU has them); elsewhere
-//! the same operations one lane after the other. The rasterizer's per-row set-up, where the
-//! compiler left most of the scalar code scalar, and the sky's shading, four pixels at once,
-//! run on them.
+//! false on NaN; division and square root are IEEE's, as in scalar code. On x86-64 they are
+//! SSE2 instructions (every x86-64 CPU has them); elsewhere the same operations one lane
+//! after the other. The rasterizer's per-row set-up, where the compiler left most of the
+//! scalar code scalar, and the shading of four sky or ground pixels at once run on them.
 //!
 //! Signed zeros: `f32::max(0.0, -0.0)` may return either; these do not promise which one
 //! either (no caller can tell: they only add to, compare or truncate the result).
@@ -311,50 +311,25 @@ impl M4 {
     }
 }
 
-impl std::ops::BitAnd for M4 {
-    type Output = Self;
+/// `impl std::ops::$op for $lanes` through `imp::$f`, lane by lane.
+macro_rules! lane_op {
+    ($lanes:ident, $op:ident, $method:ident, $f:ident) => {
+        impl std::ops::$op for $lanes {
+            type Output = Self;
 
-    #[inline(always)]
-    fn bitand(self, other: Self) -> Self {
-        Self(imp::and(self.0, other.0))
-    }
+            #[inline(always)]
+            fn $method(self, other: Self) -> Self {
+                Self(imp::$f(self.0, other.0))
+            }
+        }
+    };
 }
 
-impl std::ops::Add for F4 {
-    type Output = Self;
-
-    #[inline(always)]
-    fn add(self, other: Self) -> Self {
-        Self(imp::add(self.0, other.0))
-    }
-}
-
-impl std::ops::Sub for F4 {
-    type Output = Self;
-
-    #[inline(always)]
-    fn sub(self, other: Self) -> Self {
-        Self(imp::sub(self.0, other.0))
-    }
-}
-
-impl std::ops::Div for F4 {
-    type Output = Self;
-
-    #[inline(always)]
-    fn div(self, other: Self) -> Self {
-        Self(imp::div(self.0, other.0))
-    }
-}
-
-impl std::ops::Mul for F4 {
-    type Output = Self;
-
-    #[inline(always)]
-    fn mul(self, other: Self) -> Self {
-        Self(imp::mul(self.0, other.0))
-    }
-}
+lane_op!(M4, BitAnd, bitand, and);
+lane_op!(F4, Add, add, add);
+lane_op!(F4, Sub, sub, sub);
+lane_op!(F4, Mul, mul, mul);
+lane_op!(F4, Div, div, div);
 
 #[cfg(test)]
 mod tests {
@@ -362,8 +337,8 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     /// Lane by lane, the same bits as the scalar operations (both zeros compare equal: which
-    /// one `max` and `min` return is unspecified; so do any two NaNs), on random values mixed with NaN,
-    /// infinities and zeros.
+    /// one `max` and `min` return is unspecified; so do any two NaNs), on random values mixed
+    /// with NaN, infinities and zeros.
     #[test]
     fn lanes_compute_what_scalar_rust_computes() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);

@@ -53,22 +53,21 @@
 //! growth stage 3, ~18k of its 77k triangles in the frustum): see the bench's figures, 4x
 //! anti-aliasing next to the single-sample renderer. About 15 % of the pixels of a lane see
 //! more than one triangle and are shaded 2.3 times on average (1.2 shadings a pixel); of a
-//! frame's ~370k shadings along S3 about a third are sky, nearly half ground (soil 27 %,
-//! grass 18 %), a tenth bark and a twelfth leaves. Where the compiler leaves scalar code
-//! scalar, four lanes do the same operations at once (`lanes::F4`, SSE2, the same bits as
-//! one at a time): a triangle row's four sample bounds in the raster, four sky pixels above
-//! the tree line, and four pixels whose samples all see one ground triangle (ray, plane,
-//! footprint, light and haze; the texture and the shadow map are still read pixel by
-//! pixel, and those reads, not the arithmetic, are now most of a ground pixel's time). Tried
-//! and left out, as slower: the same four-pixel path for every material (1.5 %), and
-//! shading a whole row's requests four at a time, any material (3 %); storing the mip levels and the shadow map in
-//! cache-line tiles, and rendering the next frame while the stream made the other sensors'
-//! messages, made no difference. What does not change from frame to frame is
-//! computed once per world (a triangle's unit normal, barycentric gradients and material
-//! constants) or once per camera (the ground's textures lit by its sun, about 0.1 s; the
-//! patches they come from and the ground tone's noise lattice are generated once per
-//! process, another 0.1 s); nothing per pixel divides by an integer. Sample frames:
-//! `docs/camera/`.
+//! frame's ~370k shadings along S3 about a third are sky, nearly half ground (soil 27 %, grass
+//! 18 %), 9 % bark and 8 % leaves. Where the compiler leaves scalar code scalar, four lanes do
+//! the same operations at once (`lanes::F4`, SSE2, the same bits as one at a time): a triangle
+//! row's four sample bounds in the raster, four sky pixels above the tree line, and four pixels
+//! whose samples all see one ground triangle (ray, plane, footprint, light and haze; the
+//! texture and the shadow map are still read pixel by pixel, and those reads, not the
+//! arithmetic, are now most of a ground pixel's time). Tried and left out, as slower: the same
+//! four-pixel path for every material (1.5 %), and shading a whole row's requests four at a
+//! time, any material (3 %); storing the mip levels and the shadow map in cache-line tiles, and
+//! rendering the next frame while the stream made the other sensors' messages, made no
+//! difference. What does not change from frame to frame is computed once per world (a
+//! triangle's unit normal, barycentric gradients and material constants) or once per camera
+//! (the ground's textures lit by its sun, about 0.1 s; the patches they come from and the
+//! ground tone's noise lattice are generated once per process, another 0.1 s); nothing per
+//! pixel divides by an integer. Sample frames: `docs/camera/`.
 
 mod chunks;
 mod depth_noise;

@@ -171,9 +171,9 @@ impl Shader<'_> {
 impl Shader<'_> {
     /// The colour of four pixels, columns `u..u + 4` of row `v`, whose samples all see the
     /// sky, where all four look above the tree line (`None` otherwise: then each is
-    /// [`Shader::shade`]d). The same bits as `shade` gives each, lane by lane (`F4`); a third
-    /// of a frame's shadings in a lane of the vineyard are sky, and their square roots and
-    /// division, four at once, cost what one did.
+    /// [`Shader::shade`]d). The same bits as `shade` gives each, lane by lane (`F4`): a third
+    /// of a frame's shadings in a lane of the vineyard are sky, and here one instruction
+    /// takes each of their square roots and divisions for four pixels.
     pub fn sky4(&self, u: f32, v: f32) -> Option<[[f32; 3]; 4]> {
         let splat = F4::splat;
         // The rays and their unit vectors' elevation, as in `shade`.
