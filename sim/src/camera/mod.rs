@@ -264,35 +264,32 @@ impl RgbdCamera {
                             (&ids[r * n * w..][..n * w], &inv_z[r * n * w..][..n * w]);
                         let mut u = 0;
                         while u < w {
-                            // Four pixels of sky at once where they lie above the tree line.
-                            if u + 4 <= w
-                                && row_ids[u * n..(u + 4) * n].iter().all(|&id| id == u32::MAX)
-                                && let Some(sky) = shader.sky4(u as u32 as f32, y)
-                            {
-                                linear[u..u + 4].copy_from_slice(&sky);
-                                z[u..u + 4].fill(0.0);
-                                cos[u..u + 4].fill(0.0);
-                                u += 4;
-                                continue;
-                            }
-                            // Four pixels of one ground triangle at once.
+                            // Four pixels whose samples all see one surface: sky above the
+                            // tree line, or a ground triangle, are shaded at once.
                             let id = row_ids[u * n];
-                            if u + 4 <= w
-                                && id != u32::MAX
-                                && row_ids[u * n..(u + 4) * n].iter().all(|&i| i == id)
-                            {
-                                let q = &row_q[u * n..(u + 4) * n];
-                                let inv_z = [0, 1, 2, 3]
-                                    .map(|l| q[l * n..][..n].iter().sum::<f32>() / n as f32);
-                                if let Some(shaded) = shader.ground4(u as u32 as f32, y, id, inv_z)
-                                {
-                                    for (l, s) in shaded.iter().enumerate() {
-                                        linear[u + l] = s.rgb;
-                                        z[u + l] = s.depth;
-                                        cos[u + l] = s.cos_incidence;
+                            if u + 4 <= w && row_ids[u * n..(u + 4) * n].iter().all(|&i| i == id) {
+                                let x = u as u32 as f32;
+                                if id == u32::MAX {
+                                    if let Some(sky) = shader.sky4(x, y) {
+                                        linear[u..u + 4].copy_from_slice(&sky);
+                                        z[u..u + 4].fill(0.0);
+                                        cos[u..u + 4].fill(0.0);
+                                        u += 4;
+                                        continue;
                                     }
-                                    u += 4;
-                                    continue;
+                                } else {
+                                    let q = &row_q[u * n..(u + 4) * n];
+                                    let inv_z =
+                                        [0, 1, 2, 3].map(|l| msaa::mean_q(&q[l * n..][..n]));
+                                    if let Some(shaded) = shader.ground4(x, y, id, inv_z) {
+                                        for (l, s) in shaded.iter().enumerate() {
+                                            linear[u + l] = s.rgb;
+                                            z[u + l] = s.depth;
+                                            cos[u + l] = s.cos_incidence;
+                                        }
+                                        u += 4;
+                                        continue;
+                                    }
                                 }
                             }
                             let s = msaa::resolve(

@@ -21,6 +21,12 @@ use super::shading::{Shaded, Shader};
 /// The largest pattern (8 samples).
 const MAX_SAMPLES: usize = 8;
 
+/// The mean 1 / z of a pixel's samples `q` that all see one surface: the fallback depth
+/// where its central ray grazes the surface's plane.
+pub(crate) fn mean_q(q: &[f32]) -> f32 {
+    q.iter().sum::<f32>() / q.len() as f32
+}
+
 /// The pixel at column `u` of row `v` from its samples: `ids[s]` and `q[s]` (1 / z, 0 for
 /// none) of the sample at offset `pattern[s]`.
 pub(crate) fn resolve(
@@ -34,8 +40,7 @@ pub(crate) fn resolve(
     let first = ids[0];
     if ids[1..n].iter().all(|&id| id == first) {
         // One triangle (or sky) in every sample: shaded at the centre, the offsets' mean.
-        let mean_q = q[..n].iter().sum::<f32>() / n as f32;
-        return shader.shade(x, y, first, mean_q);
+        return shader.shade(x, y, first, mean_q(&q[..n]));
     }
     // The distinct triangles: id, samples covered, sums of their offsets and of their q.
     let mut id = [u32::MAX; MAX_SAMPLES];
