@@ -23,6 +23,8 @@ pub struct SimConfig {
     pub terrain: TerrainConfig,
     pub robot: RobotConfig,
     pub sensors: SensorsConfig,
+    /// Fence panels around the block (the paper's world has 56; ours none).
+    pub fence: FenceConfig,
     /// Named routes; `s0`..`s3` reproduce the paper's scenarios, `s4` is ours (the same
     /// lane twice in the same direction).
     pub scenarios: BTreeMap<String, RouteSpec>,
@@ -37,6 +39,7 @@ impl Default for SimConfig {
             terrain: TerrainConfig::default(),
             robot: RobotConfig::default(),
             sensors: SensorsConfig::default(),
+            fence: FenceConfig::default(),
             scenarios: RouteSpec::builtin_scenarios(),
         }
     }
@@ -91,6 +94,14 @@ impl SimConfig {
         }
         in_range("vineyard.growth_stage", v.growth_stage, 0.0, 4.0)?;
         in_range("vineyard.plant_variation", v.plant_variation, 0.0, 1.0)?;
+        if !v.segments.is_empty() {
+            positive("vineyard.segment_length_m", v.segment_length_m)?;
+        }
+        finite_triples("vineyard.segments", &v.segments)?;
+        finite_triples("fence.panels", &self.fence.panels)?;
+        for (k, size) in self.fence.panel_size_m.iter().enumerate() {
+            positive(&format!("fence.panel_size_m[{k}]"), *size)?;
+        }
         let t = &self.terrain;
         positive("terrain.wavelength_m", t.wavelength_m)?;
         positive("terrain.bump_wavelength_m", t.bump_wavelength_m)?;
@@ -98,6 +109,9 @@ impl SimConfig {
         positive("terrain.far_cell_m", t.far_cell_m)?;
         non_negative("terrain.amplitude_m", t.amplitude_m)?;
         non_negative("terrain.bump_amplitude_m", t.bump_amplitude_m)?;
+        if let Some(m) = t.relief_margin_m {
+            non_negative("terrain.relief_margin_m", m)?;
+        }
         let r = &self.robot;
         positive("robot.max_speed_mps", r.max_speed_mps)?;
         positive("robot.max_yaw_rate_rps", r.max_yaw_rate_rps)?;
@@ -135,6 +149,17 @@ impl SimConfig {
             ));
         }
         non_negative("sensors.camera.rgb_sigma", c.rgb_sigma)?;
+        if let Some(h) = c.depth_hfov_deg {
+            in_range("sensors.camera.depth_hfov_deg", h, 1.0, 170.0)?;
+        }
+        if let Some(f) = c.colour_far_clip_m {
+            positive("sensors.camera.colour_far_clip_m", f)?;
+        }
+        if let Some(rgb) = c.background_rgb {
+            for (k, v) in rgb.iter().enumerate() {
+                in_range(&format!("sensors.camera.background_rgb[{k}]"), *v, 0.0, 1.0)?;
+            }
+        }
         non_negative("sensors.camera.edge_dropout_ratio", c.edge_dropout_ratio)?;
         in_range(
             "sensors.camera.sun_elevation_deg",
@@ -181,6 +206,16 @@ fn non_negative(key: &str, v: f64) -> Result<(), String> {
     }
 }
 
+fn finite_triples(key: &str, list: &[[f64; 3]]) -> Result<(), String> {
+    match list.iter().position(|t| t.iter().any(|v| !v.is_finite())) {
+        Some(i) => Err(format!(
+            "{key}[{i}] = {:?}: every value must be finite",
+            list[i]
+        )),
+        None => Ok(()),
+    }
+}
+
 fn in_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
     if (lo..=hi).contains(&v) {
         Ok(())
@@ -217,8 +252,22 @@ pub struct VineyardConfig {
     pub headland_m: f64,
     /// 0 dormant wood, 1 bud burst, 2 shoots, 3 dense canopy, 4 full canopy with grapes.
     pub growth_stage: f64,
-    /// 0: every plant an identical clone (the paper); 1: every plant's geometry differs.
+    /// 0: every plant an identical clone (our grid) or every segment an identical clone
+    /// (`segments`, the paper's world); 1: every plant's geometry differs.
     pub plant_variation: f64,
+    /// The rows as explicit clone segments, as the paper's world builds them: each
+    /// `[x, y, yaw_deg]` is the centre of a straight run of plants `segment_length_m` long
+    /// in the world frame, its row axis pointing at `yaw_deg` (counter-clockwise from world
+    /// x). With `plant_variation = 0` every segment is the same pattern of differing plants
+    /// (one vine mesh cloned, so the view repeats every segment); `rows`, `row_length_m`,
+    /// `row_spacing_m` then only matter to the lane-based routes. Empty (the default): the
+    /// grid of `rows` rows along x. Source: the `vine_t0` models' `<state>` poses in
+    /// `bacchus_gazebo/worlds/vineyard_stage0_riseholme_vertical.world` (LCAS/bacchus_lcas,
+    /// branch `liosam`).
+    pub segments: Vec<[f64; 3]>,
+    /// Length of one segment: plants at `plant_spacing_m` (rounded to fit a whole number),
+    /// posts at its two ends.
+    pub segment_length_m: f64,
 }
 
 impl Default for VineyardConfig {
@@ -234,6 +283,8 @@ impl Default for VineyardConfig {
             headland_m: 6.0,
             growth_stage: 3.0,
             plant_variation: 0.0,
+            segments: Vec::new(),
+            segment_length_m: 5.75,
         }
     }
 }
@@ -246,6 +297,28 @@ impl VineyardConfig {
 
     pub fn lanes(&self) -> usize {
         self.rows.saturating_sub(1)
+    }
+}
+
+/// Upright boxes around the block: the paper's perimeter fence of wooden panels
+/// (`wooden_fence` in `vineyard_stage0_riseholme_vertical.world`, its mesh `fence.dae` on
+/// LCAS/bacchus_lcas `master`). Seen by every sensor, with the posts' wood material.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FenceConfig {
+    /// Each `[x, y, yaw_deg]`: a panel's centre on the ground and the direction of its
+    /// length. Empty (ours): no fence.
+    pub panels: Vec<[f64; 3]>,
+    /// Length, thickness and height of a panel.
+    pub panel_size_m: [f64; 3],
+}
+
+impl Default for FenceConfig {
+    fn default() -> Self {
+        Self {
+            panels: Vec::new(),
+            panel_size_m: [2.0, 0.15, 1.7],
+        }
     }
 }
 
@@ -267,6 +340,12 @@ pub struct TerrainConfig {
     pub cell_m: f64,
     /// Size of the cells beyond the headlands (rounded to a multiple of `cell_m`).
     pub far_cell_m: f64,
+    /// `None` (ours): the relief goes on to the edge of the modelled ground. A distance:
+    /// the relief covers the block and its headlands and this much more, then fades over
+    /// 2 m to a flat plane at z = 0 (the paper's world: a relief mesh over a flat
+    /// 200 × 200 m ground plane, `grass_ground_plane` and `heightmap` in
+    /// `vineyard_stage0_riseholme_vertical.world`).
+    pub relief_margin_m: Option<f64>,
 }
 
 impl Default for TerrainConfig {
@@ -280,6 +359,7 @@ impl Default for TerrainConfig {
             margin_m: 30.0,
             cell_m: 0.5,
             far_cell_m: 2.0,
+            relief_margin_m: None,
         }
     }
 }
@@ -478,6 +558,12 @@ pub struct LidarConfig {
     pub max_range_m: f64,
     pub noise: NoiseProfile,
     pub range_sigma_m: f64,
+    /// `false` (ours): every column fires at its own time within the sweep, from the pose
+    /// the robot has then, and its points carry that time (a real VLP-16). `true`: the
+    /// whole sweep is taken at one instant from the pose at its stamp and every point's
+    /// time is 0, as Gazebo's `gpu_ray` sensor renders it (`sensor_velodyne_vlp16.xacro`
+    /// in LCAS/bacchus_lcas, branch `liosam`): nothing to deskew, and nothing deskews.
+    pub instant_sweep: bool,
 }
 
 impl Default for LidarConfig {
@@ -493,6 +579,7 @@ impl Default for LidarConfig {
             max_range_m: 130.0,
             noise: NoiseProfile::Typical,
             range_sigma_m: 0.008,
+            instant_sweep: false,
         }
     }
 }
@@ -573,6 +660,36 @@ pub struct CameraConfig {
     /// point-sampled materials, the renderer before. The ground's textures are mip-mapped
     /// either way.
     pub filter_materials: bool,
+    /// `None` (ours): depth is rendered with the colour image and registered to it. An
+    /// angle: depth comes from a second pinhole of this horizontal field of view at the same
+    /// optical centre and resolution (the paper's Gazebo Kinect v2: a 70° `depth` sensor
+    /// beside an 84.1° `camera` sensor, both on `kinect2_link`, `sensor_kinect_v2.xacro`
+    /// in LCAS/bacchus_lcas, branch `liosam`), delivered as `depth_registration` says.
+    pub depth_hfov_deg: Option<f64>,
+    /// With `depth_hfov_deg`: `stretched` delivers the depth image pixel for pixel as the
+    /// colour image's, under the colour intrinsics, as the paper's systems read it
+    /// (`rgbd_sync` pairs the two topics by time, nothing registers them); `registered`
+    /// reprojects it into the colour camera (pixels outside the depth camera's view: 0).
+    pub depth_registration: DepthRegistration,
+    /// `None` (ours): colour is rendered to the horizon. A distance: the colour camera's
+    /// far clip plane (optical-axis depth); beyond it the background shows (Gazebo's
+    /// `<clip><far>10.0</far>` of the Kinect's `camera` sensor).
+    pub colour_far_clip_m: Option<f64>,
+    /// `None` (ours): the sky and a distant tree line. A colour (sRGB, 0-1): a uniform
+    /// background where no surface is seen (Gazebo's `<scene><background>0.7 0.7 0.7`
+    /// in `vineyard_stage0_riseholme_vertical.world`, which has no sky).
+    pub background_rgb: Option<[f64; 3]>,
+}
+
+/// How a separately rendered depth image is paired with the colour image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum DepthRegistration {
+    /// Depth pixel (u, v) handed over as colour pixel (u, v): the paper's pairing.
+    #[default]
+    Stretched,
+    /// Depth reprojected into the colour camera: pixel (u, v) of both sees the same ray.
+    Registered,
 }
 
 impl Default for CameraConfig {
@@ -593,6 +710,10 @@ impl Default for CameraConfig {
             shadows: true,
             antialias_samples: 4,
             filter_materials: true,
+            depth_hfov_deg: None,
+            depth_registration: DepthRegistration::Stretched,
+            colour_far_clip_m: None,
+            background_rgb: None,
         }
     }
 }
@@ -643,6 +764,20 @@ pub enum RouteSpec {
     LaneSequence { lanes: Vec<usize>, overshoot_m: f64 },
     /// The user's own path: at least two (x, y) points in the world frame, driven in order.
     Waypoints { points: Vec<[f64; 2]> },
+    /// Navigation goals driven one after the other as the paper's robot drove them with
+    /// `move_base`: from `start` (`[x, y, yaw_deg]`, the robot's spawn pose), for each goal
+    /// `[x, y, yaw_deg]` turn on the spot towards it, drive straight to it, and turn on the
+    /// spot to its heading. Source: `bacchus_move_base/config/goals/scenario_*.txt`, sent by
+    /// `bacchus_move_base/scripts/send_goals.py` (LCAS/bacchus_lcas, branch `liosam`).
+    Goals {
+        start: [f64; 3],
+        goals: Vec<[f64; 3]>,
+        /// `send_goals.py` writes the goal quaternion's z into w and w into z, which turns a
+        /// written yaw ψ into the heading 180° − ψ; `true` drives the headings the paper's
+        /// robot actually took from the yaws as written in its goal files.
+        #[serde(default)]
+        send_goals_swap_zw: bool,
+    },
 }
 
 impl RouteSpec {
@@ -724,6 +859,19 @@ impl RouteSpec {
                     ));
                 }
                 non_negative("overshoot_m", *overshoot_m)
+            }
+            RouteSpec::Goals { start, goals, .. } => {
+                if goals.is_empty() {
+                    Err("goals = []: need at least one goal".into())
+                } else if start
+                    .iter()
+                    .chain(goals.iter().flatten())
+                    .any(|v| !v.is_finite())
+                {
+                    Err("start and goals: every value must be finite".into())
+                } else {
+                    Ok(())
+                }
             }
             RouteSpec::Waypoints { points } => {
                 if points.len() < 2 {

@@ -77,7 +77,7 @@ pub struct Simulation {
 impl Simulation {
     /// Builds the world and drives the scenario's route. `seed` drives all sensor noise.
     pub fn new(config: &SimConfig, scenario: &str, seed: u64) -> Result<Self, SimError> {
-        let world = World::build(&config.vineyard, &config.terrain, config.world_seed);
+        let world = World::from_config(config);
         Self::with_world(config, world, scenario, seed)
     }
 

@@ -20,7 +20,12 @@ impl Intrinsics {
     /// Square pixels, `fx = (width / 2) / tan(hfov / 2)`, principal point at the centre
     /// (`cx = (width - 1) / 2`). For 640x480 at 70°: fx = fy = 457.0, vertical FOV 55.4°.
     pub fn from_config(cfg: &CameraConfig) -> Self {
-        let fx = 0.5 * cfg.width as f64 / (0.5 * cfg.hfov_deg.to_radians()).tan();
+        Self::with_hfov(cfg, cfg.hfov_deg)
+    }
+
+    /// The configured image with a horizontal field of view of `hfov_deg`.
+    pub fn with_hfov(cfg: &CameraConfig, hfov_deg: f64) -> Self {
+        let fx = 0.5 * cfg.width as f64 / (0.5 * hfov_deg.to_radians()).tan();
         Self {
             width: cfg.width,
             height: cfg.height,

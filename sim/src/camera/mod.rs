@@ -90,7 +90,7 @@ pub use depth_noise::axial_sigma_m;
 pub use image::{RgbdImage, save_depth_png, save_rgb_png, turbo};
 pub use intrinsics::{Intrinsics, camera_from_optical};
 
-use crate::config::{CameraConfig, NoiseProfile};
+use crate::config::{CameraConfig, DepthRegistration, NoiseProfile};
 use crate::rng::SimRng;
 use crate::world::World;
 use chunks::Chunks;
@@ -124,6 +124,8 @@ pub struct RgbdCamera {
     rgb_noise: Vec<f32>,
     /// Visibility sample offsets of a pixel (`antialias_samples` of them).
     pattern: &'static [[f32; 2]],
+    /// `background_rgb` in linear light (the output's encoding squares back to it).
+    background: Option<[f32; 3]>,
 }
 
 impl RgbdCamera {
@@ -146,6 +148,7 @@ impl RgbdCamera {
                 Vec::new()
             },
             pattern: raster::pattern(cfg.antialias_samples),
+            background: cfg.background_rgb.map(|c| c.map(|x| (x * x) as f32)),
         }
     }
 
@@ -167,13 +170,6 @@ impl RgbdCamera {
     pub fn render(&self, world_from_base: &Isometry3<f64>, rng: &mut SimRng) -> RgbdImage {
         let world_from_optical = world_from_base * self.base_from_camera_optical;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
-        let view = raster::View::new(&world_from_optical, &self.intrinsics);
-
-        // 1: cull and project.
-        let visible = self.chunks.visible(&view);
-        let tris = raster::project_all(&self.chunks, &visible, &view, raster::reach(self.pattern));
-        let bins = raster::bin_by_band(&tris, h, BAND_ROWS);
-
         let seed: u64 = rng.random();
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let effects = depth_noise::Effects {
@@ -189,6 +185,71 @@ impl RgbdCamera {
             rgb_noise: if noisy { &self.rgb_noise } else { &[] },
             seed,
         };
+        let far = self.cfg.colour_far_clip_m.map(|f| f as f32);
+        let (rgb, mut depth, mut cos_incidence) =
+            self.pass(&world_from_optical, &self.intrinsics, far, &effects);
+        if let Some(hfov) = self.cfg.depth_hfov_deg {
+            match self.cfg.depth_registration {
+                DepthRegistration::Stretched => {
+                    // The depth camera's own image, handed over pixel for pixel.
+                    let k = Intrinsics::with_hfov(&self.cfg, hfov);
+                    let (_, d, c) = self.pass(&world_from_optical, &k, None, &effects);
+                    (depth, cos_incidence) = (d, c);
+                }
+                DepthRegistration::Registered => {
+                    // The same centre: registration keeps the rays the depth camera sees.
+                    let k = Intrinsics::with_hfov(&self.cfg, hfov);
+                    let c = self.intrinsics;
+                    let (tx, ty) = (
+                        (0.5 * k.width as f64) / k.fx,
+                        (0.5 * k.height as f64) / k.fy,
+                    );
+                    for (i, (z, cos)) in depth.iter_mut().zip(&mut cos_incidence).enumerate() {
+                        let (u, v) = ((i % w) as f64, (i / w) as f64);
+                        if ((u - c.cx) / c.fx).abs() > tx || ((v - c.cy) / c.fy).abs() > ty {
+                            (*z, *cos) = (0.0, 0.0);
+                        }
+                    }
+                }
+            }
+        }
+        // 4: depth effects (edge dropout looks at the neighbouring rows).
+        let mut depth_m = vec![0.0f32; w * h];
+        depth_m
+            .par_chunks_mut(w * BAND_ROWS)
+            .enumerate()
+            .for_each(|(band, out)| {
+                effects.depth_band(band * BAND_ROWS * w, &depth, &cos_incidence, out);
+            });
+
+        let k = self.intrinsics;
+        RgbdImage {
+            width: w,
+            height: h,
+            rgb,
+            depth_m,
+            intrinsics: [k.fx, k.fy, k.cx, k.cy],
+        }
+    }
+
+    /// Steps 1-3 through intrinsics `k` (the configured image size): colour with its noise,
+    /// depth and the cosine of incidence without theirs; with `far`, nothing beyond that
+    /// optical-axis depth is drawn.
+    fn pass(
+        &self,
+        world_from_optical: &Isometry3<f64>,
+        k: &Intrinsics,
+        far: Option<f32>,
+        effects: &depth_noise::Effects<'_>,
+    ) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
+        let (w, h) = (k.width, k.height);
+        let view = raster::View::new(world_from_optical, k);
+
+        // 1: cull and project.
+        let visible = self.chunks.visible(&view);
+        let tris = raster::project_all(&self.chunks, &visible, &view, raster::reach(self.pattern));
+        let bins = raster::bin_by_band(&tris, h, BAND_ROWS);
+
         let shader = Shader {
             chunks: &self.chunks,
             view: &view,
@@ -196,6 +257,7 @@ impl RgbdCamera {
             shadow: self.shadow.as_ref(),
             ground: &self.ground,
             filter: self.cfg.filter_materials,
+            background: self.background,
         };
 
         // 2-3: per band, rasterize a visibility buffer (small enough to stay in cache),
@@ -246,6 +308,15 @@ impl RgbdCamera {
                         ),
                         _ => {
                             raster::rasterize_band(&tris, list, first_row, (w, pattern), inv_z, ids)
+                        }
+                    }
+                    if let Some(far) = far {
+                        // Gazebo's far clip plane: nothing beyond is drawn.
+                        let q_min = 1.0 / far;
+                        for (q, id) in inv_z.iter().zip(ids.iter_mut()) {
+                            if *q < q_min {
+                                *id = u32::MAX;
+                            }
                         }
                     }
                     // Row by row: no integer division per pixel.
@@ -309,22 +380,6 @@ impl RgbdCamera {
                 },
             );
 
-        // 4: depth effects (edge dropout looks at the neighbouring rows).
-        let mut depth_m = vec![0.0f32; w * h];
-        depth_m
-            .par_chunks_mut(w * BAND_ROWS)
-            .enumerate()
-            .for_each(|(band, out)| {
-                effects.depth_band(band * BAND_ROWS * w, &depth, &cos_incidence, out);
-            });
-
-        let k = self.intrinsics;
-        RgbdImage {
-            width: w,
-            height: h,
-            rgb,
-            depth_m,
-            intrinsics: [k.fx, k.fy, k.cx, k.cy],
-        }
+        (rgb, depth, cos_incidence)
     }
 }

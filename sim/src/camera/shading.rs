@@ -59,6 +59,8 @@ pub(crate) struct Shader<'a> {
     pub ground: &'a GroundTexture,
     /// Band-limit the materials to the pixel footprint (`prefilter`).
     pub filter: bool,
+    /// Linear colour shown where no surface is seen, in place of the sky and tree line.
+    pub background: Option<[f32; 3]>,
 }
 
 fn sq(c: [f32; 3]) -> [f32; 3] {
@@ -74,6 +76,13 @@ impl Shader<'_> {
         let len = dot(&d, &d).sqrt();
         let inv_len = 1.0 / len;
         if id == u32::MAX {
+            if let Some(rgb) = self.background {
+                return Shaded {
+                    rgb,
+                    depth: 0.0,
+                    cos_incidence: 0.0,
+                };
+            }
             let unit = d.map(|x| x * inv_len);
             // Far away: mostly the haze colour.
             let hazy = |c: [f32; 3]| {
@@ -175,6 +184,9 @@ impl Shader<'_> {
     /// of a frame's shadings in a lane of the vineyard are sky, and here one instruction
     /// takes each of their square roots and divisions for four pixels.
     pub fn sky4(&self, u: f32, v: f32) -> Option<[[f32; 3]; 4]> {
+        if let Some(rgb) = self.background {
+            return Some([rgb; 4]);
+        }
         let splat = F4::splat;
         // The rays and their unit vectors' elevation, as in `shade`.
         let d = self.rays4(u, v);
@@ -336,6 +348,7 @@ mod tests {
                     shadow: None,
                     ground: &ground,
                     filter,
+                    background: None,
                 };
                 for v in (0..k.height).step_by(7) {
                     for u in (0..k.width - 3).step_by(5) {
@@ -400,6 +413,7 @@ mod tests {
                     shadow,
                     ground: &ground,
                     filter,
+                    background: None,
                 };
                 for (i, &id) in ids.iter().enumerate() {
                     let (u, v) = ((i * 37) % (k.width - 3), (i * 53) % k.height);

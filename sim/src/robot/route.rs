@@ -103,6 +103,26 @@ impl Route {
                 }
                 vec![Leg::Drive(serpentine(v, lanes, overshoot_m))]
             }
+            RouteSpec::Goals {
+                start,
+                ref goals,
+                send_goals_swap_zw,
+            } => {
+                let heading = |yaw_deg: f64| {
+                    if send_goals_swap_zw {
+                        (180.0 - yaw_deg).to_radians()
+                    } else {
+                        yaw_deg.to_radians()
+                    }
+                };
+                let start_point = Point2::new(start[0], start[1]);
+                return Ok(Self {
+                    name: name.to_owned(),
+                    start: start_point,
+                    start_yaw: start[2].to_radians(),
+                    legs: goal_legs(start_point, start[2].to_radians(), goals, heading),
+                });
+            }
             RouteSpec::Waypoints { ref points } => {
                 let mut path = vec![Point2::from(points[0])];
                 for pair in points.windows(2) {
@@ -126,6 +146,42 @@ impl Route {
             legs,
         })
     }
+}
+
+/// Smallest turn on the spot worth a leg of its own (1°).
+const MIN_TURN_RAD: f64 = 0.017_453_292_519_943_295;
+
+/// The legs of a goal sequence: turn towards the next goal, drive straight to it, turn to
+/// its heading (each turn only where it exceeds [`MIN_TURN_RAD`]).
+fn goal_legs(
+    start: Point2<f64>,
+    start_yaw: f64,
+    goals: &[[f64; 3]],
+    heading: impl Fn(f64) -> f64,
+) -> Vec<Leg> {
+    let off = |a: f64, b: f64| {
+        (a - b + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+    };
+    let (mut at, mut yaw) = (start, start_yaw);
+    let mut legs = Vec::new();
+    for goal in goals {
+        let to = Point2::new(goal[0], goal[1]);
+        let d = to - at;
+        if d.norm() > 1e-6 {
+            let towards = d.y.atan2(d.x);
+            if off(towards, yaw).abs() > MIN_TURN_RAD {
+                legs.push(Leg::Rotate { yaw: towards });
+            }
+            legs.push(Leg::Drive(segment([at.x, at.y], [to.x, to.y])));
+            (at, yaw) = (to, towards);
+        }
+        let wanted = heading(goal[2]);
+        if off(wanted, yaw).abs() > MIN_TURN_RAD {
+            legs.push(Leg::Rotate { yaw: wanted });
+            yaw = wanted;
+        }
+    }
+    legs
 }
 
 fn polyline_length(points: &[Point2<f64>]) -> f64 {

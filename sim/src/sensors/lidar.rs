@@ -73,8 +73,11 @@ impl LidarSensor {
         k as i64 * self.sweep_ns
     }
 
-    /// Time offset of column `c` from the scan's stamp.
+    /// Time offset of column `c` from the scan's stamp (0 for an instant sweep).
     fn column_offset_ns(&self, c: usize) -> i64 {
+        if self.cfg.instant_sweep {
+            return 0;
+        }
         (self.sweep_ns as f64 * c as f64 / self.cfg.columns as f64).round() as i64
     }
 

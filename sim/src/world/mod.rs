@@ -16,7 +16,7 @@ pub use terrain::Terrain;
 pub use trellis::post_xs;
 pub use vine::{PlantRng, VineLayout, vine};
 
-use crate::config::{TerrainConfig, VineyardConfig};
+use crate::config::{FenceConfig, SimConfig, TerrainConfig, VineyardConfig};
 use crate::rng::stream;
 
 /// One vine's place in the world and its triangles in [`World::mesh`].
@@ -36,17 +36,50 @@ pub struct World {
     pub terrain: Terrain,
     pub mesh: Mesh,
     pub plants: Vec<PlantSite>,
-    /// Ground points of every post, row by row.
+    /// Ground points of every post, row by row (segment by segment).
     pub posts: Vec<Point3<f64>>,
+    /// Ground centres of the fence panels.
+    pub fence: Vec<Point3<f64>>,
     /// Extent of the modelled ground: (min, max) in x and y.
     pub extent: ([f64; 2], [f64; 2]),
 }
 
 impl World {
-    /// Builds the world deterministically from its configuration and `world_seed`.
+    /// Builds the whole world of a configuration: block, terrain and fence.
+    pub fn from_config(cfg: &SimConfig) -> Self {
+        Self::build_with_fence(&cfg.vineyard, &cfg.terrain, &cfg.fence, cfg.world_seed)
+    }
+
+    /// Builds the world deterministically from its configuration and `world_seed` (no fence).
     pub fn build(vineyard: &VineyardConfig, terrain_cfg: &TerrainConfig, world_seed: u64) -> Self {
-        let terrain = Terrain::new(terrain_cfg, &mut stream(world_seed, "terrain"));
-        Self::build_on(vineyard, terrain_cfg, terrain, world_seed)
+        Self::build_with_fence(vineyard, terrain_cfg, &FenceConfig::default(), world_seed)
+    }
+
+    fn build_with_fence(
+        vineyard: &VineyardConfig,
+        terrain_cfg: &TerrainConfig,
+        fence: &FenceConfig,
+        world_seed: u64,
+    ) -> Self {
+        let mut terrain = Terrain::new(terrain_cfg, &mut stream(world_seed, "terrain"));
+        if let Some(margin) = terrain_cfg.relief_margin_m {
+            let (lo, hi) = block_bounds(vineyard);
+            let grow = vineyard.headland_m + margin;
+            terrain = terrain.windowed([lo[0] - grow, lo[1] - grow], [hi[0] + grow, hi[1] + grow]);
+        }
+        let mut world = Self::build_on(vineyard, terrain_cfg, terrain, world_seed);
+        let [length, thickness, height] = fence.panel_size_m;
+        for &[x, y, yaw_deg] in &fence.panels {
+            let foot = Point3::new(x, y, world.terrain.height(x, y));
+            shapes::panel(
+                &mut world.mesh,
+                foot.cast(),
+                yaw_deg.to_radians() as f32,
+                [length as f32, thickness as f32, height as f32],
+            );
+            world.fence.push(foot);
+        }
+        world
     }
 
     /// Builds the world on a given terrain surface (tests use [`Terrain::flat`]).
@@ -56,12 +89,15 @@ impl World {
         terrain: Terrain,
         world_seed: u64,
     ) -> Self {
+        if !vineyard.segments.is_empty() {
+            return Self::build_segments(vineyard, terrain_cfg, terrain, world_seed);
+        }
         let v = vineyard;
-        let block_min = [-v.headland_m, -v.headland_m];
-        let block_max = [
-            v.row_length_m + v.headland_m,
-            (v.rows.max(1) - 1) as f64 * v.row_spacing_m + v.headland_m,
-        ];
+        let (block_min, block_max) = {
+            let (lo, hi) = block_bounds(v);
+            let h = v.headland_m;
+            ([lo[0] - h, lo[1] - h], [hi[0] + h, hi[1] + h])
+        };
         let margin = terrain_cfg.margin_m;
         let extent = (
             [block_min[0] - margin, block_min[1] - margin],
@@ -160,6 +196,146 @@ impl World {
             mesh,
             plants,
             posts,
+            fence: Vec::new(),
+            extent,
+        }
+    }
+
+    /// The block as rows of clone segments (`vineyard.segments`, the paper's world): every
+    /// segment the same `n` plants (with `plant_variation = 0`), posts at the segment ends
+    /// (one where two segments meet), wires between them. `PlantSite::row` is the segment.
+    fn build_segments(
+        v: &VineyardConfig,
+        terrain_cfg: &TerrainConfig,
+        terrain: Terrain,
+        world_seed: u64,
+    ) -> Self {
+        let (lo, hi) = block_bounds(v);
+        let h = v.headland_m;
+        let (block_min, block_max) = ([lo[0] - h, lo[1] - h], [hi[0] + h, hi[1] + h]);
+        let margin = terrain_cfg.margin_m;
+        let extent = (
+            [block_min[0] - margin, block_min[1] - margin],
+            [block_max[0] + margin, block_max[1] + margin],
+        );
+        let soil = |x: f64, y: f64| {
+            let inside = (lo[0] - 1.0..=hi[0] + 1.0).contains(&x)
+                && (lo[1] - 1.0..=hi[1] + 1.0).contains(&y);
+            if inside {
+                Material::Soil
+            } else {
+                Material::Grass
+            }
+        };
+        let ratio = (terrain_cfg.far_cell_m / terrain_cfg.cell_m)
+            .round()
+            .max(1.0) as usize;
+        let mut mesh = terrain.mesh(
+            (block_min, block_max),
+            extent,
+            terrain_cfg.cell_m,
+            ratio,
+            soil,
+        );
+
+        // Posts at every segment's start and at its end unless another segment starts there.
+        let ends: Vec<[Point3<f64>; 2]> = v
+            .segments
+            .iter()
+            .map(|s| {
+                let (a, b) = segment_ends(s, v.segment_length_m);
+                [a, b].map(|p| Point3::new(p[0], p[1], terrain.height(p[0], p[1])))
+            })
+            .collect();
+        let mut posts = Vec::new();
+        for (i, [a, b]) in ends.iter().enumerate() {
+            let shared = ends
+                .iter()
+                .enumerate()
+                .any(|(j, e)| j != i && (e[0].xy() - b.xy()).norm() < 1.0);
+            let feet: &[Point3<f64>] = if shared { &[*a] } else { &[*a, *b] };
+            for foot in feet {
+                shapes::post(&mut mesh, foot.cast(), 0.1, v.post_height_m as f32);
+                posts.push(*foot);
+            }
+            for &wire in &v.wire_heights_m {
+                let up = Vector3::z() * wire;
+                shapes::tube(
+                    &mut mesh,
+                    (a + up).cast(),
+                    (b + up).cast(),
+                    0.0025,
+                    3,
+                    false,
+                    Material::Wire,
+                );
+            }
+        }
+
+        let layout = VineLayout {
+            spacing_m: v.segment_length_m / plants_per_segment(v) as f64,
+            cordon_height_m: v
+                .wire_heights_m
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min)
+                .min(v.post_height_m),
+            canopy_top_m: v.post_height_m,
+            growth_stage: v.growth_stage,
+        };
+        let n = plants_per_segment(v);
+        let sites: Vec<(usize, usize)> = (0..v.segments.len())
+            .flat_map(|s| (0..n).map(move |i| (s, i)))
+            .collect();
+        let clone_of = |i: usize| stream(world_seed, &format!("plant/clone/{i}"));
+        let build = |&(s, i): &(usize, usize)| {
+            let own = stream(world_seed, &format!("plant/segment/{s}/{i}"));
+            vine(
+                &layout,
+                &mut PlantRng::new(clone_of(i), own, v.plant_variation),
+            )
+        };
+        let local_meshes: Vec<Mesh> = if v.plant_variation == 0.0 {
+            // Identical segments: build one.
+            let one: Vec<Mesh> = (0..n).into_par_iter().map(|i| build(&(0, i))).collect();
+            sites.iter().map(|&(_, i)| one[i].clone()).collect()
+        } else {
+            sites.par_iter().map(build).collect()
+        };
+
+        let mut plants = Vec::with_capacity(sites.len());
+        for (&(segment, index), local) in sites.iter().zip(&local_meshes) {
+            let [x0, y0, yaw_deg] = v.segments[segment];
+            let (start, _) = segment_ends(&v.segments[segment], v.segment_length_m);
+            let along = (index as f64 + 0.5) * layout.spacing_m;
+            let yaw = yaw_deg.to_radians();
+            let (x, y) = (start[0] + along * yaw.cos(), start[1] + along * yaw.sin());
+            debug_assert!(((x - x0).hypot(y - y0)) <= 0.5 * v.segment_length_m);
+            let base = Point3::new(x, y, terrain.height(x, y));
+            let world_from_plant =
+                nalgebra::Isometry3::new(base.coords.cast::<f32>(), Vector3::z() * yaw as f32);
+            let start_tri = mesh.triangle_count();
+            let mut placed = local.clone();
+            placed
+                .vertices
+                .iter_mut()
+                .for_each(|p| *p = world_from_plant * *p);
+            mesh.append(&placed);
+            plants.push(PlantSite {
+                row: segment,
+                index,
+                base,
+                triangles: start_tri..mesh.triangle_count(),
+            });
+        }
+
+        Self {
+            vineyard: v.clone(),
+            terrain,
+            mesh,
+            plants,
+            posts,
+            fence: Vec::new(),
             extent,
         }
     }
@@ -176,6 +352,41 @@ impl World {
         }
         seen
     }
+}
+
+/// Plants in one clone segment: the segment length at about `plant_spacing_m`.
+fn plants_per_segment(v: &VineyardConfig) -> usize {
+    ((v.segment_length_m / v.plant_spacing_m).round() as usize).max(1)
+}
+
+/// The two ends of a segment `[x, y, yaw_deg]` of `length`: (start, end) along its axis.
+fn segment_ends(s: &[f64; 3], length: f64) -> ([f64; 2], [f64; 2]) {
+    let (c, yaw) = ([s[0], s[1]], s[2].to_radians());
+    let half = [0.5 * length * yaw.cos(), 0.5 * length * yaw.sin()];
+    (
+        [c[0] - half[0], c[1] - half[1]],
+        [c[0] + half[0], c[1] + half[1]],
+    )
+}
+
+/// The rows' bounding box in the world frame, (min, max), headlands not included.
+pub fn block_bounds(v: &VineyardConfig) -> ([f64; 2], [f64; 2]) {
+    if v.segments.is_empty() {
+        let last_row_y = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
+        return ([0.0, 0.0], [v.row_length_m, last_row_y]);
+    }
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for s in &v.segments {
+        let (a, b) = segment_ends(s, v.segment_length_m);
+        for p in [a, b] {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    (lo, hi)
 }
 
 #[cfg(test)]

@@ -132,3 +132,40 @@ pub fn post(mesh: &mut Mesh, base: Point3<f32>, width: f32, height: f32) {
     mesh.push_triangle([top[0], top[1], top[2]], Material::Post);
     mesh.push_triangle([top[0], top[2], top[3]], Material::Post);
 }
+
+/// An upright box standing on `foot` (the centre of its base; sunk 0.1 m into the ground
+/// so no gap shows on a slope), `size` = (length, thickness, height), its length along
+/// `yaw` from world x: a fence panel. Texture space is panel-local, like a post's.
+pub fn panel(mesh: &mut Mesh, foot: Point3<f32>, yaw: f32, size: [f32; 3]) {
+    let [l, t, h] = size;
+    let (c, s) = (yaw.cos(), yaw.sin());
+    let (along, across) = (Vector3::new(c, s, 0.0), Vector3::new(-s, c, 0.0));
+    let corner = |i: usize, top: bool| {
+        let (a, b) = [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)][i];
+        let z = if top { h } else { -0.1 };
+        let local = [a * l, b * t, z];
+        (
+            foot + along * local[0] + across * local[1] + Vector3::z() * z,
+            local,
+        )
+    };
+    let bottom: Vec<u32> = (0..4)
+        .map(|i| {
+            let (p, tex) = corner(i, false);
+            mesh.push_vertex_tex(p, tex)
+        })
+        .collect();
+    let top: Vec<u32> = (0..4)
+        .map(|i| {
+            let (p, tex) = corner(i, true);
+            mesh.push_vertex_tex(p, tex)
+        })
+        .collect();
+    for i in 0..4 {
+        let j = (i + 1) % 4;
+        mesh.push_triangle([bottom[i], bottom[j], top[j]], Material::Post);
+        mesh.push_triangle([bottom[i], top[j], top[i]], Material::Post);
+    }
+    mesh.push_triangle([top[0], top[1], top[2]], Material::Post);
+    mesh.push_triangle([top[0], top[2], top[3]], Material::Post);
+}

@@ -23,11 +23,38 @@ struct Wave {
     amplitude: f64,
 }
 
+/// Width over which a windowed relief fades to the flat plane.
+pub const RELIEF_FADE_M: f64 = 2.0;
+
 /// The analytic ground surface z = h(x, y).
 #[derive(Debug, Clone)]
 pub struct Terrain {
     waves: Vec<Wave>,
     slope: Vector2<f64>,
+    /// Where the relief is whole: (min, max) corners; beyond, it fades over
+    /// [`RELIEF_FADE_M`] to the plane of the slope alone. `None`: everywhere.
+    window: Option<([f64; 2], [f64; 2])>,
+}
+
+/// Weight of the relief along one axis and its derivative: 1 inside `[lo, hi]`, a C1
+/// smoothstep down to 0 within [`RELIEF_FADE_M`] outside.
+fn fade(v: f64, lo: f64, hi: f64) -> (f64, f64) {
+    let (outside, sign) = if v < lo {
+        (lo - v, 1.0)
+    } else if v > hi {
+        (v - hi, -1.0)
+    } else {
+        return (1.0, 0.0);
+    };
+    if outside >= RELIEF_FADE_M {
+        return (0.0, 0.0);
+    }
+    let t = 1.0 - outside / RELIEF_FADE_M;
+    // d/dv of 3t² - 2t³, with dt/dv = sign / fade.
+    (
+        t * t * (3.0 - 2.0 * t),
+        6.0 * t * (1.0 - t) * sign / RELIEF_FADE_M,
+    )
 }
 
 impl Terrain {
@@ -60,7 +87,11 @@ impl Terrain {
             cfg.slope_deg[0].to_radians().tan(),
             cfg.slope_deg[1].to_radians().tan(),
         );
-        Self { waves, slope }
+        Self {
+            waves,
+            slope,
+            window: None,
+        }
     }
 
     /// A flat plane at z = 0.
@@ -68,25 +99,62 @@ impl Terrain {
         Self {
             waves: Vec::new(),
             slope: Vector2::zeros(),
+            window: None,
+        }
+    }
+
+    /// The same surface with its relief kept whole over the box `min`..`max` only, fading
+    /// to the flat plane (the slope alone) within [`RELIEF_FADE_M`] beyond it.
+    pub fn windowed(mut self, min: [f64; 2], max: [f64; 2]) -> Self {
+        self.window = Some((min, max));
+        self
+    }
+
+    /// The relief's weight at (x, y) and its gradient.
+    fn weight(&self, x: f64, y: f64) -> (f64, Vector2<f64>) {
+        match self.window {
+            None => (1.0, Vector2::zeros()),
+            Some((lo, hi)) => {
+                let (wx, dx) = fade(x, lo[0], hi[0]);
+                let (wy, dy) = fade(y, lo[1], hi[1]);
+                (wx * wy, Vector2::new(dx * wy, wx * dy))
+            }
         }
     }
 
     pub fn height(&self, x: f64, y: f64) -> f64 {
         let p = Vector2::new(x, y);
-        self.slope.dot(&p)
-            + self
-                .waves
+        let (w, _) = self.weight(x, y);
+        let relief = if w == 0.0 {
+            0.0
+        } else {
+            self.waves
                 .iter()
                 .map(|w| w.amplitude * (w.k.dot(&p) + w.phase).sin())
                 .sum::<f64>()
+        };
+        self.slope.dot(&p) + w * relief
     }
 
     /// (∂h/∂x, ∂h/∂y).
     pub fn gradient(&self, x: f64, y: f64) -> Vector2<f64> {
         let p = Vector2::new(x, y);
-        self.waves.iter().fold(self.slope, |g, w| {
+        let (w, dw) = self.weight(x, y);
+        if w == 0.0 {
+            return self.slope;
+        }
+        let relief_gradient = self.waves.iter().fold(Vector2::zeros(), |g, w| {
             g + w.k * (w.amplitude * (w.k.dot(&p) + w.phase).cos())
-        })
+        });
+        let relief = if dw == Vector2::zeros() {
+            0.0
+        } else {
+            self.waves
+                .iter()
+                .map(|w| w.amplitude * (w.k.dot(&p) + w.phase).sin())
+                .sum::<f64>()
+        };
+        self.slope + relief_gradient * w + dw * relief
     }
 
     /// Triangulates the surface over `outer` with square cells of `cell * ratio` metres,
@@ -260,6 +328,35 @@ mod tests {
             worst < 0.05,
             "ground mesh departs {worst} m from the surface"
         );
+    }
+
+    #[test]
+    fn windowed_relief_fades_to_the_flat_plane_with_a_matching_gradient() {
+        let t = Terrain::new(&TerrainConfig::default(), &mut stream(3, "terrain"))
+            .windowed([0.0, 0.0], [10.0, 5.0]);
+        let h = 1e-5;
+        // Inside, in the fade band on each side and at a corner, and beyond it.
+        for (x, y) in [
+            (5.0, 2.0),
+            (-0.7, 2.0),
+            (11.3, 4.0),
+            (3.0, -1.9),
+            (-1.0, 6.0),
+        ] {
+            let g = t.gradient(x, y);
+            let gx = (t.height(x + h, y) - t.height(x - h, y)) / (2.0 * h);
+            let gy = (t.height(x, y + h) - t.height(x, y - h)) / (2.0 * h);
+            assert!(
+                (g.x - gx).abs() < 1e-7 && (g.y - gy).abs() < 1e-7,
+                "at ({x}, {y}): gradient {g:?} vs ({gx}, {gy})"
+            );
+        }
+        let unwindowed = Terrain::new(&TerrainConfig::default(), &mut stream(3, "terrain"));
+        assert_eq!(t.height(5.0, 2.0), unwindowed.height(5.0, 2.0));
+        assert!(unwindowed.height(5.0, 2.0).abs() > 1e-4, "a relief to fade");
+        for (x, y) in [(-2.0, 2.0), (12.5, 0.0), (5.0, 40.0)] {
+            assert_eq!(t.height(x, y), 0.0, "flat at ({x}, {y})");
+        }
     }
 
     #[test]

@@ -4,6 +4,7 @@ mod camera;
 mod camera_features;
 mod embree;
 mod kernels;
+mod paper_world;
 mod sim;
 
 use nalgebra::{Point3, Vector3};
