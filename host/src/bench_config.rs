@@ -130,6 +130,10 @@ pub struct BenchConfig {
     /// once per run (default). The data are the same either way.
     #[serde(default = "default_share")]
     pub share_simulation: bool,
+    /// The published table this bench reproduces (relative to this file; CSV with
+    /// `scenario,system,max,mean,median,rmse,std`): its figures are shown beside ours in
+    /// the printed table, `table.md` and the report, for the plugins whose label matches.
+    pub paper_table: Option<PathBuf>,
     pub plugins: Vec<PluginEntry>,
 }
 
@@ -143,6 +147,7 @@ impl BenchConfig {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         cfg.world = cfg.world.map(|w| base.join(w));
+        cfg.paper_table = cfg.paper_table.map(|p| base.join(p));
         cfg.plugin_dirs = cfg.plugin_dirs.iter().map(|d| base.join(d)).collect();
         for p in &mut cfg.plugins {
             p.path = p.path.as_ref().map(|q| base.join(q));

@@ -56,6 +56,10 @@ pub fn rig(cfg: &SimConfig) -> Rig {
                 ("gyro_bias_random_walk", s.imu.gyro_bias_random_walk),
             ],
         ),
+        intrinsics: figures(&[(
+            "reports_orientation",
+            f64::from(u8::from(s.imu.reports_orientation)),
+        )]),
         ..spec("imu", SensorKind::Imu, s.imu.rate_hz)
     }
     .with_mount(&s.imu.mount.base_from_sensor());

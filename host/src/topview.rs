@@ -14,6 +14,7 @@ const LEAF: Rgb = [60, 120, 45];
 const GRAPE: Rgb = [90, 40, 110];
 const STEM: Rgb = [90, 60, 40];
 const POST: Rgb = [70, 70, 70];
+const FENCE: Rgb = [120, 80, 40];
 const PLANNED: Rgb = [255, 255, 255];
 const DRIVEN: Rgb = [220, 30, 30];
 const START: Rgb = [30, 200, 60];
@@ -27,11 +28,25 @@ fn shade(color: Rgb, factor: f64) -> Rgb {
 pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
     let v = &sim.world.vineyard;
     let pad = v.headland_m + 1.0;
-    let last_row = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
-    let (min, max) = ((-pad, -pad), (v.row_length_m + pad, last_row + pad));
+    let (lo, hi) = sim::world::block_bounds(v);
+    let (mut min, mut max) = ((lo[0] - pad, lo[1] - pad), (hi[0] + pad, hi[1] + pad));
+    // The fence, where there is one, and its surroundings.
+    for f in &sim.world.fence {
+        min = (min.0.min(f.x - 1.5), min.1.min(f.y - 1.5));
+        max = (max.0.max(f.x + 1.5), max.1.max(f.y + 1.5));
+    }
+    let title = if v.segments.is_empty() {
+        format!("{} rows x {} m", v.rows, v.row_length_m)
+    } else {
+        format!(
+            "{} clone segments of {} m",
+            v.segments.len(),
+            v.segment_length_m
+        )
+    };
     let mut chart = Chart::top_view(format!(
-        "{} rows x {} m, growth stage {}: route and driven path",
-        v.rows, v.row_length_m, v.growth_stage
+        "{title}, growth stage {}: route and driven path",
+        v.growth_stage
     ));
     chart.x_range = Some((min.0, max.0));
     chart.y_range = Some((min.1, max.1));
@@ -49,8 +64,8 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
         for i in 0..nx {
             let (x, y) = (min.0 + i as f64 * CELL_M, min.1 + j as f64 * CELL_M);
             let (cx, cy) = (x + 0.5 * CELL_M, y + 0.5 * CELL_M);
-            let in_block = (-0.5..=v.row_length_m + 0.5).contains(&cx)
-                && (-1.0..=last_row + 1.0).contains(&cy);
+            let in_block = (lo[0] - 0.5..=hi[0] + 0.5).contains(&cx)
+                && (lo[1] - 1.0..=hi[1] + 1.0).contains(&cy);
             let base: Rgb = if in_block {
                 [150, 120, 90]
             } else {
@@ -105,6 +120,20 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
             .collect(),
     });
 
+    // Fence panels as thick lines along their length.
+    let [length, ..] = sim.config.fence.panel_size_m;
+    for &[x, y, yaw_deg] in &sim.config.fence.panels {
+        let (dx, dy) = (
+            0.5 * length * yaw_deg.to_radians().cos(),
+            0.5 * length * yaw_deg.to_radians().sin(),
+        );
+        chart.marks.push(Mark::Line {
+            points: vec![(x - dx, y - dy), (x + dx, y + dy)],
+            color: FENCE,
+            width_px: 3,
+        });
+    }
+
     // Route as planned (thin) and as driven (thick), start and end marked.
     for leg in &sim.route.legs {
         if let sim::robot::Leg::Drive(points) = leg {
@@ -150,6 +179,9 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
         (Swatch::Box(GRAPE), "grapes".into()),
         (Swatch::Box(POST), "posts".into()),
     ];
+    if !sim.config.fence.panels.is_empty() {
+        chart.legend.push((line(FENCE), "fence".into()));
+    }
     let width = ((max.0 - min.0) * PX_PER_M).round() as u32 + 100;
     chart.save(path, width)?;
     Ok(())

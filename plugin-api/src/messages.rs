@@ -52,6 +52,19 @@ pub struct Imu {
     pub stamp_ns: i64,
     pub accel_mps2: [f64; 3],
     pub gyro_rps: [f64; 3],
+    /// The rotation `world_from_imu` as a unit quaternion (x, y, z, w) where the IMU reports
+    /// one (the rig's IMU has `intrinsics.reports_orientation = 1`, as the paper's Gazebo
+    /// IMU did), else all zeros. Appended last: the fields above keep their places.
+    pub orientation_xyzw: [f64; 4],
+}
+
+impl Imu {
+    /// The reported orientation, `None` where the IMU reports none.
+    pub fn orientation(&self) -> Option<UnitQuaternion<f64>> {
+        let [x, y, z, w] = self.orientation_xyzw;
+        let q = Quaternion::new(w, x, y, z);
+        (q.norm() > 0.5).then(|| UnitQuaternion::new_normalize(q))
+    }
 }
 
 /// Wheel odometry: forward speed and yaw rate of the base from the encoders, and the pose

@@ -155,9 +155,9 @@ impl SimConfig {
         if let Some(f) = c.colour_far_clip_m {
             positive("sensors.camera.colour_far_clip_m", f)?;
         }
-        if let Some(rgb) = c.background_rgb {
+        if let Background::Rgb(rgb) = c.background {
             for (k, v) in rgb.iter().enumerate() {
-                in_range(&format!("sensors.camera.background_rgb[{k}]"), *v, 0.0, 1.0)?;
+                in_range(&format!("sensors.camera.background[{k}]"), *v, 0.0, 1.0)?;
             }
         }
         non_negative("sensors.camera.edge_dropout_ratio", c.edge_dropout_ratio)?;
@@ -492,6 +492,12 @@ pub struct ImuConfig {
     /// Standard deviation of the turn-on bias, per axis.
     pub accel_bias_initial: f64,
     pub gyro_bias_initial: f64,
+    /// `false` (ours): rates and specific force only, as a bare MEMS IMU. `true`: each
+    /// sample also carries the IMU's orientation in the world frame, the true one without
+    /// noise, as Gazebo's `gazebo_ros_imu_sensor` publishes it (`sensor_imu.xacro` in
+    /// LCAS/bacchus_lcas, branch `liosam`: `initialOrientationAsReference` false, noise 0);
+    /// LIO-SAM reads it.
+    pub reports_orientation: bool,
 }
 
 impl Default for ImuConfig {
@@ -507,6 +513,7 @@ impl Default for ImuConfig {
             gyro_bias_random_walk: 2.0e-5,
             accel_bias_initial: 0.02,
             gyro_bias_initial: 1.0e-3,
+            reports_orientation: false,
         }
     }
 }
@@ -675,10 +682,34 @@ pub struct CameraConfig {
     /// far clip plane (optical-axis depth); beyond it the background shows (Gazebo's
     /// `<clip><far>10.0</far>` of the Kinect's `camera` sensor).
     pub colour_far_clip_m: Option<f64>,
-    /// `None` (ours): the sky and a distant tree line. A colour (sRGB, 0-1): a uniform
-    /// background where no surface is seen (Gazebo's `<scene><background>0.7 0.7 0.7`
-    /// in `vineyard_stage0_riseholme_vertical.world`, which has no sky).
-    pub background_rgb: Option<[f64; 3]>,
+    /// What shows where no surface is seen: `"sky"` (ours: a sky gradient and a distant
+    /// tree line) or a colour `[r, g, b]` (sRGB, 0-1), uniform (Gazebo's
+    /// `<scene><background>0.7 0.7 0.7` in `vineyard_stage0_riseholme_vertical.world`,
+    /// which has no sky).
+    pub background: Background,
+}
+
+/// The camera's background: the sky, or one colour.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Background {
+    /// `"sky"`.
+    Sky(SkyTag),
+    /// `[r, g, b]`, sRGB in 0-1.
+    Rgb([f64; 3]),
+}
+
+/// The one word `"sky"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SkyTag {
+    Sky,
+}
+
+impl Default for Background {
+    fn default() -> Self {
+        Background::Sky(SkyTag::Sky)
+    }
 }
 
 /// How a separately rendered depth image is paired with the colour image.
@@ -713,7 +744,7 @@ impl Default for CameraConfig {
             depth_hfov_deg: None,
             depth_registration: DepthRegistration::Stretched,
             colour_far_clip_m: None,
-            background_rgb: None,
+            background: Background::default(),
         }
     }
 }

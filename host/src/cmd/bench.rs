@@ -83,6 +83,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         max_time_s: max_time_s.or(cfg.max_time_s),
         share_simulation: cfg.share_simulation,
         bars: true,
+        paper_table: cfg.paper_table.clone(),
     };
     report(&plan).map(drop)
 }

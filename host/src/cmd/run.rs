@@ -92,6 +92,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         // One run: nothing to share.
         share_simulation: false,
         bars: true,
+        paper_table: None,
     };
     let executed = crate::cmd::bench::report(&plan)?;
     // One run: its failure is the command's failure (the results folder is still written).

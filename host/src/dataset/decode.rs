@@ -44,14 +44,20 @@ fn skip_f64(r: &mut CdrReader<'_>, n: usize) -> Result<(), DatasetError> {
 pub(crate) fn imu(data: &[u8]) -> Result<ImuSample, DatasetError> {
     let mut r = CdrReader::new(data)?;
     let (stamp_ns, _) = header(&mut r)?;
-    skip_f64(&mut r, 4 + 9)?; // orientation and its covariance
+    let q = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
+    // REP 145: a first covariance of -1 says there is no orientation.
+    let known = r.f64()? != -1.0;
+    skip_f64(&mut r, 8)?;
     let gyro_rps = vector3(&mut r)?;
     skip_f64(&mut r, 9)?;
     let accel_mps2 = vector3(&mut r)?;
+    let orientation =
+        known.then(|| UnitQuaternion::new_unchecked(Quaternion::new(q[3], q[0], q[1], q[2])));
     Ok(ImuSample {
         stamp_ns,
         accel_mps2,
         gyro_rps,
+        orientation,
     })
 }
 

@@ -62,7 +62,15 @@ fn zeros(w: &mut CdrWriter, n: usize) {
 pub(crate) fn imu(m: &ImuSample) -> Vec<u8> {
     let mut w = CdrWriter::with_capacity(360);
     header(&mut w, m.stamp_ns, IMU_FRAME);
-    pose_orientation_unknown(&mut w);
+    match m.orientation {
+        Some(q) => {
+            for v in [q.i, q.j, q.k, q.w] {
+                w.f64(v);
+            }
+            zeros(&mut w, 9); // known exactly
+        }
+        None => pose_orientation_unknown(&mut w),
+    }
     vector3(&mut w, &m.gyro_rps);
     zeros(&mut w, 9);
     vector3(&mut w, &m.accel_mps2);

@@ -156,7 +156,9 @@ pub fn write_bench_report(dir: &Path, name: &str) -> anyhow::Result<u64> {
 /// The page of a bench.
 pub fn bench_page(results: &BenchResults, name: &str) -> anyhow::Result<String> {
     let records: Vec<_> = results.runs.iter().map(|r| r.record.clone()).collect();
-    let table = Table::new(&results.scenarios, &results.plugins, &records)?;
+    let reference = super::reference::Reference::in_folder(&results.dir)?;
+    let table = Table::new(&results.scenarios, &results.plugins, &records)?
+        .with_reference(reference.as_ref());
     let mut body = String::new();
     let _ = writeln!(body, "<h1>vinebench: {}</h1>", esc(name));
     let ok = records.iter().filter(|r| r.status == RunStatus::Ok).count();
@@ -307,6 +309,9 @@ fn table_html(table: &Table) -> String {
     }
     h.push_str("</table></div>\n");
     let _ = writeln!(h, "<p class=\"note\">{}</p>", esc(markdown::CAPTION));
+    if table.reference.is_some() {
+        let _ = writeln!(h, "<p class=\"note\">{}</p>", esc(markdown::PAPER_CAPTION));
+    }
     let failures: Vec<_> = table.failures().collect();
     if !failures.is_empty() {
         h.push_str("<p>Failed runs:</p><ul>\n");

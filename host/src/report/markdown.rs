@@ -16,6 +16,9 @@ pub(super) const CAPTION: &str = "APE translation after alignment in metres; \
     false (a measured relative pose off by more than 0.5 m or 10°; without one, poses more \
     than 1 m apart).";
 
+pub(super) const PAPER_CAPTION: &str = "paper max .. paper std: the figures the paper \
+    published for that system and scenario (Hroob et al. 2021, Table 2; `paper.csv`), not ours.";
+
 /// `text` safe inside a table cell: `|` escaped.
 fn cell(text: &str) -> String {
     text.replace('|', "\\|")
@@ -74,6 +77,9 @@ pub(super) fn render(table: &Table) -> String {
         }
     }
     let _ = write!(out, "\n{CAPTION}\n");
+    if table.reference.is_some() {
+        let _ = write!(out, "\n{PAPER_CAPTION}\n");
+    }
     if let Some(note) = table.cut_note() {
         let _ = write!(out, "\n{note}\n");
     }

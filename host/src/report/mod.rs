@@ -20,6 +20,7 @@ mod latex;
 pub mod load;
 mod markdown;
 pub mod plot;
+pub mod reference;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -102,6 +103,9 @@ pub struct ScenarioTruth {
 ///   keep ASCII letters, digits, `.`, `-` and `_` of the scenario name; any other
 ///   character becomes `_`.
 ///
+/// With `reference` (the published table the bench reproduces), rows `paper max` ..
+/// `paper std` follow: each column's published figures, blank where it has none.
+///
 /// Column order: `scenarios` and `plugins` as given, then any scenario or plugin that
 /// only appears in `runs`, in order of first appearance. A (scenario, plugin) pair
 /// without a run has no column. A plugin keeps its colour (by position in that order)
@@ -115,8 +119,9 @@ pub fn write_reports(
     plugins: &[String],
     runs: &[RunRecord],
     truths: &[ScenarioTruth],
+    reference: Option<&reference::Reference>,
 ) -> anyhow::Result<String> {
-    let table = Table::new(scenarios, plugins, runs)?;
+    let table = Table::new(scenarios, plugins, runs)?.with_reference(reference);
     std::fs::create_dir_all(dir)
         .with_context(|| format!("creating the results folder {}", dir.display()))?;
     let markdown = markdown::render(&table);

@@ -23,6 +23,15 @@ const RTF_DECIMALS: usize = 1;
 /// ground truth); counts, no decimals.
 const LOOPS_LABEL: &str = "loops";
 const FALSE_LOOPS_LABEL: &str = "false loops";
+/// Labels of the reference's rows, in [`super::reference::STATISTICS`] order (the paper
+/// prints centimetres: two decimals).
+const PAPER_LABELS: [&str; 5] = [
+    "paper max",
+    "paper mean",
+    "paper median",
+    "paper rmse",
+    "paper std",
+];
 /// The error-statistic rows come first in [`Table::rows`]; the others (RTF, loops) after.
 pub(super) const ERROR_ROWS: usize = STATISTICS.len();
 
@@ -43,6 +52,8 @@ pub(super) enum Cell {
     Failed,
     /// The run is ok but the value is missing or not finite.
     Missing,
+    /// Nothing to show (a reference row where the paper has no figure).
+    Blank,
 }
 
 /// One row of cells, one per column.
@@ -60,6 +71,7 @@ impl Row {
             Cell::Value(v) => format!("{v:.prec$}", prec = self.decimals),
             Cell::Failed => "failed".to_owned(),
             Cell::Missing => "n/a".to_owned(),
+            Cell::Blank => String::new(),
         }
     }
 }
@@ -70,6 +82,8 @@ pub(super) struct Table<'a> {
     /// All scenarios in order, including those without runs.
     pub(super) scenarios: Vec<&'a str>,
     pub(super) columns: Vec<Column<'a>>,
+    /// Published figures to show beside the runs' (rows `paper max` ..).
+    pub(super) reference: Option<&'a super::reference::Reference>,
 }
 
 /// `given` followed by the names of `extra` not in it yet, in order of first appearance.
@@ -126,7 +140,20 @@ impl<'a> Table<'a> {
                 });
             }
         }
-        Ok(Self { scenarios, columns })
+        Ok(Self {
+            scenarios,
+            columns,
+            reference: None,
+        })
+    }
+
+    /// The same table with the published figures of `reference` as extra rows.
+    pub(super) fn with_reference(
+        mut self,
+        reference: Option<&'a super::reference::Reference>,
+    ) -> Self {
+        self.reference = reference;
+        self
     }
 
     /// The scenarios that have columns, each with the range of its columns.
@@ -194,6 +221,23 @@ impl<'a> Table<'a> {
                     .collect(),
                 decimals: 0,
             });
+        }
+        if let Some(reference) = self.reference {
+            for (k, label) in PAPER_LABELS.into_iter().enumerate() {
+                rows.push(Row {
+                    label,
+                    cells: self
+                        .columns
+                        .iter()
+                        .map(|c| {
+                            reference
+                                .get(&c.run.scenario, &c.run.plugin)
+                                .map_or(Cell::Blank, |v| Cell::Value(v[k]))
+                        })
+                        .collect(),
+                    decimals: 2,
+                });
+            }
         }
         rows
     }

@@ -79,7 +79,8 @@ fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
 
 fn write(dir: &Path) -> String {
     let (scenarios, plugins, runs, truths) = bench();
-    write_reports(dir, &scenarios, &plugins, &runs, &truths).expect("expected reports written")
+    write_reports(dir, &scenarios, &plugins, &runs, &truths, None)
+        .expect("expected reports written")
 }
 
 fn read(path: &Path) -> String {
@@ -435,7 +436,7 @@ fn duplicate_runs_are_an_error_and_extra_names_get_columns() {
     let (scenarios, plugins, mut runs, truths) = bench();
     let dir = tempfile::tempdir().unwrap();
     runs.push(ok("s2", "kiss-icp", 0.0, 1.0, 0.0));
-    let md = write_reports(dir.path(), &scenarios, &plugins, &runs, &truths).unwrap();
+    let md = write_reports(dir.path(), &scenarios, &plugins, &runs, &truths, None).unwrap();
     assert!(
         md.lines().next().unwrap().contains("s2") && md.contains("kiss-icp"),
         "expected a run of an unlisted scenario and plugin to get a column in\n{md}"
@@ -445,7 +446,7 @@ fn duplicate_runs_are_an_error_and_extra_names_get_columns() {
         "expected a plot of the unlisted scenario"
     );
     runs.push(ok("s0", "lio_sam", 0.0, 1.0, 0.0));
-    let err = write_reports(dir.path(), &scenarios, &plugins, &runs, &truths)
+    let err = write_reports(dir.path(), &scenarios, &plugins, &runs, &truths, None)
         .expect_err("expected two runs of one pair to be an error");
     assert!(
         err.to_string()
@@ -460,7 +461,7 @@ fn duplicate_runs_are_an_error_and_extra_names_get_columns() {
 fn cut_routes_are_said_to_be_cut() {
     let (scenarios, plugins, mut runs, truths) = bench();
     let whole = tempfile::tempdir().unwrap();
-    let md = write_reports(whole.path(), &scenarios, &plugins, &runs, &truths).unwrap();
+    let md = write_reports(whole.path(), &scenarios, &plugins, &runs, &truths, None).unwrap();
     assert!(
         !md.contains("max_time_s")
             && !read(&whole.path().join("table.json")).contains("max_time_s"),
@@ -470,7 +471,7 @@ fn cut_routes_are_said_to_be_cut() {
         run.max_time_s = Some(20.0);
     }
     let cut = tempfile::tempdir().unwrap();
-    let md = write_reports(cut.path(), &scenarios, &plugins, &runs, &truths).unwrap();
+    let md = write_reports(cut.path(), &scenarios, &plugins, &runs, &truths, None).unwrap();
     assert!(
         md.contains("Routes cut at 20 s of simulated time (max_time_s)")
             && md.contains("not the paper's table"),
@@ -542,4 +543,49 @@ fn loops_are_segments_grey_when_true_and_red_when_false() {
     ] {
         assert!(texts.contains(&label), "{label:?} not in {texts:?}");
     }
+}
+
+/// With the paper's table, rows `paper max` .. `paper std` carry its figures under the
+/// columns whose (scenario, system) it has, blank under the others, and a line says whose.
+#[test]
+fn the_papers_figures_are_rows_beside_ours() {
+    let (scenarios, plugins, runs, truths) = bench();
+    let reference = reference::Reference::parse(
+        "# test\nscenario,system,max,mean,median,rmse,std\ns0,lio_sam,1.65,1.00,1.11,1.13,0.53\n",
+        "t.csv",
+    )
+    .expect("parses");
+    let dir = tempfile::tempdir().unwrap();
+    let md = write_reports(
+        dir.path(),
+        &scenarios,
+        &plugins,
+        &runs,
+        &truths,
+        Some(&reference),
+    )
+    .unwrap();
+    let line = |label: &str| {
+        md.lines()
+            .find(|l| md_cells(l).first() == Some(&label))
+            .unwrap_or_else(|| panic!("a {label} row in\n{md}"))
+            .to_owned()
+    };
+    // Columns: s0 wheel-odometry, s0 lio_sam, s1 wheel-odometry, s1 lio_sam.
+    assert_eq!(
+        md_cells(&line("paper rmse")),
+        ["paper rmse", "", "1.13", "", ""]
+    );
+    assert_eq!(
+        md_cells(&line("paper max")),
+        ["paper max", "", "1.65", "", ""]
+    );
+    assert_eq!(
+        md_cells(&line("paper std")),
+        ["paper std", "", "0.53", "", ""]
+    );
+    assert!(md.contains("Hroob et al. 2021, Table 2"), "{md}");
+    let without = tempfile::tempdir().unwrap();
+    let md = write_reports(without.path(), &scenarios, &plugins, &runs, &truths, None).unwrap();
+    assert!(!md.contains("paper"), "no reference, no paper rows:\n{md}");
 }

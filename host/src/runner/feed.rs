@@ -120,6 +120,15 @@ pub fn encode(message: &Message) -> Vec<u8> {
             o.i64(m.stamp_ns);
             o.vector(&m.accel_mps2);
             o.vector(&m.gyro_rps);
+            match m.orientation {
+                Some(q) => {
+                    o.i64(1);
+                    for v in [q.i, q.j, q.k, q.w] {
+                        o.f64(v);
+                    }
+                }
+                None => o.i64(0),
+            }
             IMU
         }
         Message::WheelOdometry(m) => {
@@ -274,6 +283,12 @@ pub fn decode(tag: u8, payload: &[u8]) -> Result<Option<Message>, FeedError> {
             stamp_ns: r.i64()?,
             accel_mps2: r.vector()?,
             gyro_rps: r.vector()?,
+            orientation: if r.i64()? == 1 {
+                let [x, y, z, w] = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
+                Some(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)))
+            } else {
+                None
+            },
         })),
         ODOMETRY => Some(Message::WheelOdometry(WheelOdometry {
             stamp_ns: r.i64()?,

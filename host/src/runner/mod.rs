@@ -59,6 +59,8 @@ pub struct Plan {
     pub share_simulation: bool,
     /// Draw a progress bar per run on the terminal (a sweep draws its own instead).
     pub bars: bool,
+    /// The published table the bench reproduces, shown beside its figures.
+    pub paper_table: Option<PathBuf>,
 }
 
 /// Called as each run of a plan ends, with its index in `Plan::runs`, its record and its
@@ -96,6 +98,11 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
         );
     }
     let config = sim::SimConfig::load(plan.world.as_deref())?;
+    let reference = plan
+        .paper_table
+        .as_deref()
+        .map(crate::report::reference::Reference::load)
+        .transpose()?;
     // Check the scenarios before starting anything.
     for s in &plan.scenarios {
         if !config.scenarios.contains_key(s) {
@@ -109,8 +116,18 @@ pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
     }
     std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
     let written = run_all(plan, &config, &tmp, &|_, _, _| {}).and_then(|(records, truths)| {
-        let table =
-            crate::report::write_reports(&tmp, &plan.scenarios, &plan.labels, &records, &truths)?;
+        if let Some(path) = &plan.paper_table {
+            let copy = tmp.join(crate::report::reference::FILE);
+            std::fs::copy(path, &copy).with_context(|| copy.display().to_string())?;
+        }
+        let table = crate::report::write_reports(
+            &tmp,
+            &plan.scenarios,
+            &plan.labels,
+            &records,
+            &truths,
+            reference.as_ref(),
+        )?;
         crate::report::html::write_bench_report(&tmp, &folder_name(&plan.out))?;
         std::fs::File::create(tmp.join(MARKER))?;
         Ok((records, table))

@@ -190,6 +190,7 @@ fn deliver(
             stamp_ns: m.stamp_ns,
             accel_mps2: m.accel_mps2.into(),
             gyro_rps: m.gyro_rps.into(),
+            orientation_xyzw: m.orientation.map_or([0.0; 4], |q| [q.i, q.j, q.k, q.w]),
         }),
         Message::WheelOdometry(m) => instance.on_wheel_odometry(&plugin_api::WheelOdometry {
             stamp_ns: m.stamp_ns,

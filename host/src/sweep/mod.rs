@@ -387,6 +387,7 @@ impl Sweep {
                     max_time_s: self.cfg.max_time_s,
                     share_simulation: self.cfg.share_simulation,
                     bars: false,
+                    paper_table: None,
                 };
                 (plan, cells)
             })

@@ -221,6 +221,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         max_time_s: tasks.max_time_s,
         share_simulation: false,
         bars: false,
+        paper_table: None,
     };
     let job = std::env::var("SLURM_ARRAY_JOB_ID").unwrap_or_else(|_| "task".into());
     let work = work_dir(out, &format!("slurm-{job}-{index}"));

@@ -63,6 +63,7 @@ fn preintegrated_imu_matches_integrated_ground_truth() {
                 stamp_ns: m.stamp_ns,
                 accel_mps2: m.accel_mps2.into(),
                 gyro_rps: m.gyro_rps.into(),
+                orientation_xyzw: [0.0; 4],
             });
         }
     }
@@ -145,6 +146,7 @@ fn deskewing_improves_registration_on_a_turning_scan() {
                 stamp_ns: m.stamp_ns,
                 accel_mps2: m.accel_mps2.into(),
                 gyro_rps: m.gyro_rps.into(),
+                orientation_xyzw: [0.0; 4],
             }),
             // The map: sweeps of the 6 s before, deskewed with the true motion.
             Message::Lidar(scan)

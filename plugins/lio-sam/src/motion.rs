@@ -160,6 +160,7 @@ mod tests {
                 stamp_ns: k * 5_000_000,
                 accel_mps2: [0.0, 0.0, 9.8],
                 gyro_rps: [0.0; 3],
+                orientation_xyzw: [0.0; 4],
             });
         }
         let s = q.samples(7_000_000, 21_000_000);

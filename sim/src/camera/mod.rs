@@ -90,7 +90,7 @@ pub use depth_noise::axial_sigma_m;
 pub use image::{RgbdImage, save_depth_png, save_rgb_png, turbo};
 pub use intrinsics::{Intrinsics, camera_from_optical};
 
-use crate::config::{CameraConfig, DepthRegistration, NoiseProfile};
+use crate::config::{Background, CameraConfig, DepthRegistration, NoiseProfile};
 use crate::rng::SimRng;
 use crate::world::World;
 use chunks::Chunks;
@@ -124,7 +124,7 @@ pub struct RgbdCamera {
     rgb_noise: Vec<f32>,
     /// Visibility sample offsets of a pixel (`antialias_samples` of them).
     pattern: &'static [[f32; 2]],
-    /// `background_rgb` in linear light (the output's encoding squares back to it).
+    /// A uniform `background` in linear light (the output's encoding squares back to it).
     background: Option<[f32; 3]>,
 }
 
@@ -148,7 +148,10 @@ impl RgbdCamera {
                 Vec::new()
             },
             pattern: raster::pattern(cfg.antialias_samples),
-            background: cfg.background_rgb.map(|c| c.map(|x| (x * x) as f32)),
+            background: match cfg.background {
+                Background::Sky(_) => None,
+                Background::Rgb(c) => Some(c.map(|x| (x * x) as f32)),
+            },
         }
     }
 
@@ -187,13 +190,13 @@ impl RgbdCamera {
         };
         let far = self.cfg.colour_far_clip_m.map(|f| f as f32);
         let (rgb, mut depth, mut cos_incidence) =
-            self.pass(&world_from_optical, &self.intrinsics, far, &effects);
+            self.pass(&world_from_optical, &self.intrinsics, far, &effects, true);
         if let Some(hfov) = self.cfg.depth_hfov_deg {
             match self.cfg.depth_registration {
                 DepthRegistration::Stretched => {
                     // The depth camera's own image, handed over pixel for pixel.
                     let k = Intrinsics::with_hfov(&self.cfg, hfov);
-                    let (_, d, c) = self.pass(&world_from_optical, &k, None, &effects);
+                    let (_, d, c) = self.pass(&world_from_optical, &k, None, &effects, false);
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
@@ -232,15 +235,17 @@ impl RgbdCamera {
         }
     }
 
-    /// Steps 1-3 through intrinsics `k` (the configured image size): colour with its noise,
-    /// depth and the cosine of incidence without theirs; with `far`, nothing beyond that
-    /// optical-axis depth is drawn.
+    /// Steps 1-3 through intrinsics `k` (the configured image size): colour with its noise
+    /// (none without `colour`: a depth camera's pass, which shades nothing), depth and the
+    /// cosine of incidence without theirs; with `far`, nothing beyond that optical-axis
+    /// depth is drawn.
     fn pass(
         &self,
         world_from_optical: &Isometry3<f64>,
         k: &Intrinsics,
         far: Option<f32>,
         effects: &depth_noise::Effects<'_>,
+        colour: bool,
     ) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
         let (w, h) = (k.width, k.height);
         let view = raster::View::new(world_from_optical, k);
@@ -318,6 +323,28 @@ impl RgbdCamera {
                                 *id = u32::MAX;
                             }
                         }
+                    }
+                    if !colour {
+                        // A depth camera: the depth `msaa::resolve` would give, no colour.
+                        for (r, (z, cos)) in z
+                            .chunks_exact_mut(w)
+                            .zip(cos.chunks_exact_mut(w))
+                            .enumerate()
+                        {
+                            let y = (first_row + r) as u32 as f32;
+                            let (row_ids, row_q) =
+                                (&ids[r * n * w..][..n * w], &inv_z[r * n * w..][..n * w]);
+                            for u in 0..w {
+                                (z[u], cos[u]) = msaa::resolve_depth(
+                                    &shader,
+                                    pattern,
+                                    (u as u32 as f32, y),
+                                    &row_ids[u * n..][..n],
+                                    &row_q[u * n..][..n],
+                                );
+                            }
+                        }
+                        return;
                     }
                     // Row by row: no integer division per pixel.
                     for (r, ((rgb, z), cos)) in rgb

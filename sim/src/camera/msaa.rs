@@ -96,6 +96,58 @@ pub(crate) fn resolve(
     }
 }
 
+/// The depth and incidence cosine [`resolve`] gives the pixel, bit for bit, without
+/// shading any colour: the majority surface (most samples, then nearest, then the smaller
+/// id) along the pixel's central ray, its plane's depth at the majority's centroid where
+/// that ray grazes it. For a depth camera's pass.
+pub(crate) fn resolve_depth(
+    shader: &Shader<'_>,
+    pattern: &[[f32; 2]],
+    (x, y): (f32, f32),
+    ids: &[u32],
+    q: &[f32],
+) -> (f32, f32) {
+    let n = pattern.len();
+    let first = ids[0];
+    if ids[1..n].iter().all(|&id| id == first) {
+        return shader.depth_only(x, y, first, mean_q(&q[..n]));
+    }
+    let mut id = [u32::MAX; MAX_SAMPLES];
+    let mut count = [0u32; MAX_SAMPLES];
+    let mut sum = [[0.0f32; 3]; MAX_SAMPLES];
+    let mut groups = 0;
+    for (s, (&sid, &[dx, dy])) in ids.iter().zip(pattern).enumerate() {
+        let g = id[..groups]
+            .iter()
+            .position(|&i| i == sid)
+            .unwrap_or_else(|| {
+                id[groups] = sid;
+                groups += 1;
+                groups - 1
+            });
+        count[g] += 1;
+        sum[g] = [sum[g][0] + dx, sum[g][1] + dy, sum[g][2] + q[s]];
+    }
+    let (mut best, mut best_key) = (0, (0u32, f32::NEG_INFINITY));
+    for g in 0..groups {
+        let inv = 1.0 / count[g] as f32;
+        let key = (count[g], sum[g][2] * inv);
+        let wins = key.0 > best_key.0
+            || (key.0 == best_key.0
+                && (key.1 > best_key.1 || (key.1 == best_key.1 && id[g] < id[best])));
+        if g == 0 || wins {
+            (best, best_key) = (g, key);
+        }
+    }
+    if id[best] == u32::MAX {
+        return (0.0, 0.0);
+    }
+    let inv = 1.0 / count[best] as f32;
+    let centroid = (x + sum[best][0] * inv, y + sum[best][1] * inv);
+    let majority = shader.depth_only(centroid.0, centroid.1, id[best], sum[best][2] * inv);
+    shader.depth_at(x, y, id[best], majority)
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::raster::{SAMPLES_4, SAMPLES_8};

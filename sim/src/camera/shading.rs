@@ -294,6 +294,28 @@ impl Shader<'_> {
         })
     }
 
+    /// The depth and incidence cosine [`Shader::shade`] gives surface `id` (`u32::MAX`:
+    /// none, 0 and 0) through `(x, y)`, bit for bit, without its colour: the same
+    /// operations in the same order.
+    pub fn depth_only(&self, x: f32, y: f32, id: u32, inv_z: f32) -> (f32, f32) {
+        if id == u32::MAX {
+            return (0.0, 0.0);
+        }
+        let d = self.view.ray(x, y);
+        let len = dot(&d, &d).sqrt();
+        let inv_len = 1.0 / len;
+        let tri = &self.chunks.tris[id as usize];
+        let facing = dot(&tri.n, &d);
+        let ao = sub(&tri.p[0], &self.view.origin);
+        let depth = dot(&tri.n, &ao) / facing;
+        let depth = if depth.is_finite() && depth > 0.0 {
+            depth
+        } else {
+            1.0 / inv_z
+        };
+        (depth, (facing.abs() * inv_len).min(1.0))
+    }
+
     /// Depth and incidence cosine of triangle `id`'s plane along the ray through `(x, y)`;
     /// `fallback` where the ray grazes the plane.
     pub fn depth_at(&self, x: f32, y: f32, id: u32, fallback: (f32, f32)) -> (f32, f32) {

@@ -89,10 +89,15 @@ impl Sensor for ImuSensor {
                 gaussian3(&mut self.rng, self.cfg.accel_bias_random_walk * dt.sqrt());
             self.gyro_bias += gaussian3(&mut self.rng, self.cfg.gyro_bias_random_walk * dt.sqrt());
         }
+        let orientation = self
+            .cfg
+            .reports_orientation
+            .then(|| scene.trajectory.pose(stamp_ns).rotation * self.base_from_imu.rotation);
         Message::Imu(ImuSample {
             stamp_ns,
             accel_mps2: accel,
             gyro_rps: gyro,
+            orientation,
         })
     }
 }

@@ -1,7 +1,7 @@
 //! The messages the simulator emits. Time is integer nanoseconds from the start of the run;
 //! all quantities SI.
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 /// Ground-truth pose of the base.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -20,6 +20,8 @@ pub struct ImuSample {
     pub stamp_ns: i64,
     pub accel_mps2: Vector3<f64>,
     pub gyro_rps: Vector3<f64>,
+    /// The rotation `world_from_imu`, where the IMU reports one (`reports_orientation`).
+    pub orientation: Option<UnitQuaternion<f64>>,
 }
 
 /// Wheel odometry: the base's forward speed and yaw rate from the wheel encoders, and the

@@ -158,7 +158,7 @@ fn colour_beyond_ten_metres_is_the_grey_background() {
     });
     let unclipped_cfg = CameraConfig {
         colour_far_clip_m: None,
-        background_rgb: None,
+        background: sim::config::Background::default(),
         max_depth_m: 200.0,
         ..clipped_cfg.clone()
     };
@@ -310,4 +310,115 @@ fn segments_are_clones_of_one_another() {
     cfg.vineyard.plant_variation = 1.0;
     let varied = World::from_config(&cfg);
     assert!(diff(&local(&varied, 0), &local(&varied, per)) > 0.01);
+}
+
+/// The paper's Gazebo IMU: 1 kHz, noise-free, and its orientation is the true one.
+#[test]
+fn the_imu_reports_the_true_orientation_at_a_kilohertz() {
+    let cfg = paper_world();
+    let sim = Simulation::new(&cfg, "s1", 0).expect("builds");
+    let base_from_imu = cfg.sensors.imu.mount.base_from_sensor();
+    let mut n = 0;
+    for m in sim.stream(SensorSet {
+        imu: true,
+        ..SensorSet::default()
+    }) {
+        let Message::Imu(m) = m else { continue };
+        assert_eq!(m.stamp_ns, n * 1_000_000, "1 kHz");
+        let q = m
+            .orientation
+            .expect("the paper's IMU reports its orientation");
+        let truth = (sim.trajectory.pose(m.stamp_ns) * base_from_imu).rotation;
+        assert!(
+            q.angle_to(&truth) < 1e-12,
+            "at {} ns: {}",
+            m.stamp_ns,
+            q.angle_to(&truth)
+        );
+        n += 1;
+        if m.stamp_ns > 30_000_000_000 {
+            break;
+        }
+    }
+    assert!(n > 30_000, "{n} samples");
+    let mut ours = cfg.clone();
+    ours.sensors.imu.reports_orientation = false;
+    let sim = Simulation::new(&ours, "s1", 0).expect("builds");
+    let first = sim
+        .stream(SensorSet {
+            imu: true,
+            ..SensorSet::default()
+        })
+        .find_map(|m| match m {
+            Message::Imu(m) => Some(m),
+            _ => None,
+        })
+        .expect("a sample");
+    assert_eq!(first.orientation, None, "switched off, no orientation");
+}
+
+/// Regenerates docs/paper-world/frames: `cargo test -p vinebench-sim --release --test all --
+/// --ignored paper_world::sample_frames`. Noise-free colour (as docs/camera) and the depth
+/// as delivered, at the same moments of S0 and S3 in the paper's world and in ours.
+#[test]
+#[ignore = "writes docs/paper-world/*.png"]
+fn sample_frames() {
+    use sim::camera::{save_depth_png, save_rgb_png};
+    let out = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/paper-world");
+    std::fs::create_dir_all(&out).expect("docs/paper-world");
+    for (world_name, cfg) in [("paper", paper_world()), ("ours", SimConfig::default())] {
+        let world = World::from_config(&cfg);
+        let cam = RgbdCamera::new(&cfg.sensors.camera, &world);
+        let clean = RgbdCamera::new(&exact(cfg.sensors.camera.clone()), &world);
+        // S0 in its middle; S3 a third of the way (in a lane in both worlds).
+        for (scenario, fraction) in [("s0", 0.5), ("s3", 0.33)] {
+            let sim = Simulation::with_world(&cfg, world.clone(), scenario, 0).expect("builds");
+            let t = (sim.duration_ns() as f64 * fraction) as i64;
+            let base = sim.trajectory.pose(t);
+            let image = cam.render(&base, &mut stream(1, "camera"));
+            let mut colour = clean.render(&base, &mut stream(1, "camera"));
+            colour.rgb.iter_mut().for_each(|c| *c = (*c & !3) | 2);
+            let name = format!("{world_name}_{scenario}");
+            save_rgb_png(&out.join(format!("{name}_rgb.png")), &colour).expect("rgb png");
+            save_depth_png(&out.join(format!("{name}_depth.png")), &image, 8.0).expect("png");
+        }
+    }
+}
+
+/// The depth camera's pass shades no colour but gives the depth the colour pass gives, bit
+/// for bit: a separate depth camera with the colour camera's own field of view delivers the
+/// registered depth image exactly.
+#[test]
+fn a_depth_pass_gives_the_colour_passes_depth_bit_for_bit() {
+    let cfg = paper_world();
+    let world = World::from_config(&cfg);
+    let (x, y) = (8.0, 2.0);
+    let base = nalgebra::Isometry3::new(
+        Vector3::new(x, y, world.terrain.height(x, y) + 0.02),
+        Vector3::new(0.02, -0.01, 1.4),
+    );
+    for samples in [1, 4] {
+        let one = CameraConfig {
+            depth_hfov_deg: None,
+            antialias_samples: samples,
+            ..cfg.sensors.camera.clone()
+        };
+        let two = CameraConfig {
+            depth_hfov_deg: Some(one.hfov_deg),
+            depth_registration: DepthRegistration::Stretched,
+            ..one.clone()
+        };
+        let a = RgbdCamera::new(&one, &world).render(&base, &mut stream(3, "c"));
+        let b = RgbdCamera::new(&two, &world).render(&base, &mut stream(3, "c"));
+        let valid = a.depth_m.iter().filter(|&&z| z > 0.0).count();
+        assert!(valid > 100_000, "{valid} valid pixels");
+        assert!(
+            a.depth_m
+                .iter()
+                .zip(&b.depth_m)
+                .all(|(p, q)| p.to_bits() == q.to_bits()),
+            "{samples} sample(s): the depth pass differs from the colour pass"
+        );
+        assert_eq!(a.rgb, b.rgb, "the colour is the colour pass's");
+    }
 }
