@@ -191,7 +191,7 @@ fn run_all(
     on_done: OnDone,
 ) -> anyhow::Result<(Vec<RunRecord>, Vec<ScenarioTruth>)> {
     // Ground truth of each scenario for the plots: the trajectory alone is cheap.
-    let world = sim::world::World::from_config(&config);
+    let world = sim::world::World::from_config(config);
     let mut truths = Vec::new();
     for s in &plan.scenarios {
         let sim = sim::Simulation::with_world(config, world.clone(), s, plan.seed)?;
