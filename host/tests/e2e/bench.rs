@@ -148,6 +148,26 @@ fn s4_runs_in_a_bench() {
 /// not the paper's figures.
 const PAPER_TEST_MAX_TIME_S: f64 = 12.0;
 
+/// Runs a shipped bench file (relative to the workspace root) on the first
+/// [`PAPER_TEST_MAX_TIME_S`] of its routes into `out`; its standard output.
+fn shipped_bench_cut(file: &str, out: &Path) -> String {
+    let config = workspace_root().join(file);
+    let o = vinebench(&[
+        "bench",
+        config.to_str().expect("utf-8"),
+        "--max-time",
+        &PAPER_TEST_MAX_TIME_S.to_string(),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        o.status.success(),
+        "{file}: bench failed: {}",
+        text(&o.stderr)
+    );
+    text(&o.stdout)
+}
+
 /// The last stamp of a TUM file, seconds.
 fn last_stamp(path: &Path) -> f64 {
     crate::common::read_tum(path).last().expect("poses").0
@@ -248,18 +268,8 @@ fn max_time_cuts_the_route() {
 #[test]
 fn our_worlds_bench_prints_the_table_for_s0_to_s3() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let paper = workspace_root().join("configs/vinebench.toml");
     let out = tmp.path().join("paper");
-    let o = vinebench(&[
-        "bench",
-        paper.to_str().expect("utf-8"),
-        "--max-time",
-        &PAPER_TEST_MAX_TIME_S.to_string(),
-        "--out",
-        out.to_str().expect("utf-8"),
-    ]);
-    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
-    let stdout = text(&o.stdout);
+    let stdout = shipped_bench_cut("configs/vinebench.toml", &out);
     let header = stdout
         .lines()
         .find(|l| l.contains("s0"))
@@ -393,18 +403,8 @@ fn our_worlds_bench_prints_the_table_for_s0_to_s3() {
 #[test]
 fn paper_bench_runs_on_the_papers_world_beside_its_table() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let paper = workspace_root().join("configs/paper.toml");
     let out = tmp.path().join("paper");
-    let o = vinebench(&[
-        "bench",
-        paper.to_str().expect("utf-8"),
-        "--max-time",
-        &PAPER_TEST_MAX_TIME_S.to_string(),
-        "--out",
-        out.to_str().expect("utf-8"),
-    ]);
-    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
-    let stdout = text(&o.stdout);
+    let stdout = shipped_bench_cut("configs/paper.toml", &out);
     let table = json(&out.join("table.json"));
     let labels = [
         "wheel-odometry",

@@ -27,6 +27,62 @@ pub(crate) fn mean_q(q: &[f32]) -> f32 {
     q.iter().sum::<f32>() / q.len() as f32
 }
 
+/// The distinct surfaces among a pixel's samples, in sample order: id, samples covered,
+/// sums of their offsets and of their 1 / z.
+struct Groups {
+    id: [u32; MAX_SAMPLES],
+    count: [u32; MAX_SAMPLES],
+    sum: [[f32; 3]; MAX_SAMPLES],
+    len: usize,
+}
+
+impl Groups {
+    fn of(pattern: &[[f32; 2]], ids: &[u32], q: &[f32]) -> Self {
+        let mut g = Self {
+            id: [u32::MAX; MAX_SAMPLES],
+            count: [0; MAX_SAMPLES],
+            sum: [[0.0; 3]; MAX_SAMPLES],
+            len: 0,
+        };
+        for (s, (&sid, &[dx, dy])) in ids.iter().zip(pattern).enumerate() {
+            let k = g.id[..g.len]
+                .iter()
+                .position(|&i| i == sid)
+                .unwrap_or_else(|| {
+                    g.id[g.len] = sid;
+                    g.len += 1;
+                    g.len - 1
+                });
+            g.count[k] += 1;
+            g.sum[k] = [g.sum[k][0] + dx, g.sum[k][1] + dy, g.sum[k][2] + q[s]];
+        }
+        g
+    }
+
+    /// Group `k`'s centroid about the pixel centre `(x, y)` and its mean 1 / z.
+    fn centroid(&self, k: usize, (x, y): (f32, f32)) -> ((f32, f32), f32) {
+        let inv = 1.0 / self.count[k] as f32;
+        let s = self.sum[k];
+        ((x + s[0] * inv, y + s[1] * inv), s[2] * inv)
+    }
+
+    /// The majority: most samples, then nearest (largest mean 1 / z; sky's is 0), then the
+    /// smaller id (the groups are in sample order, so only a strict win replaces).
+    fn majority(&self) -> usize {
+        let (mut best, mut best_key) = (0, (0u32, f32::NEG_INFINITY));
+        for k in 0..self.len {
+            let key = (self.count[k], self.centroid(k, (0.0, 0.0)).1);
+            let wins = key.0 > best_key.0
+                || (key.0 == best_key.0
+                    && (key.1 > best_key.1 || (key.1 == best_key.1 && self.id[k] < self.id[best])));
+            if k == 0 || wins {
+                (best, best_key) = (k, key);
+            }
+        }
+        best
+    }
+}
+
 /// The pixel at column `u` of row `v` from its samples: `ids[s]` and `q[s]` (1 / z, 0 for
 /// none) of the sample at offset `pattern[s]`.
 pub(crate) fn resolve(
@@ -42,52 +98,32 @@ pub(crate) fn resolve(
         // One triangle (or sky) in every sample: shaded at the centre, the offsets' mean.
         return shader.shade(x, y, first, mean_q(&q[..n]));
     }
-    // The distinct triangles: id, samples covered, sums of their offsets and of their q.
-    let mut id = [u32::MAX; MAX_SAMPLES];
-    let mut count = [0u32; MAX_SAMPLES];
-    let mut sum = [[0.0f32; 3]; MAX_SAMPLES];
-    let mut groups = 0;
-    for (s, (&sid, &[dx, dy])) in ids.iter().zip(pattern).enumerate() {
-        let g = id[..groups]
-            .iter()
-            .position(|&i| i == sid)
-            .unwrap_or_else(|| {
-                id[groups] = sid;
-                groups += 1;
-                groups - 1
-            });
-        count[g] += 1;
-        sum[g] = [sum[g][0] + dx, sum[g][1] + dy, sum[g][2] + q[s]];
-    }
+    let groups = Groups::of(pattern, ids, q);
     let weight = 1.0 / n as f32;
     let mut rgb = [0.0f32; 3];
-    // The majority: most samples, then nearest (largest 1 / z; sky's is 0), then the
-    // smaller id (the groups are in sample order, so only a strict win replaces).
-    let (mut best, mut best_key) = (0, (0u32, f32::NEG_INFINITY));
-    let mut best_shaded = None;
-    for g in 0..groups {
-        let c = count[g] as f32;
-        let inv = 1.0 / c;
-        let centroid = (x + sum[g][0] * inv, y + sum[g][1] * inv);
-        let mean_q = sum[g][2] * inv;
-        let s = shader.shade(centroid.0, centroid.1, id[g], mean_q);
-        let w = c * weight;
+    let best = groups.majority();
+    let mut majority = None;
+    for g in 0..groups.len {
+        let (centroid, mean_q) = groups.centroid(g, (x, y));
+        let s = shader.shade(centroid.0, centroid.1, groups.id[g], mean_q);
+        let w = groups.count[g] as f32 * weight;
         for (acc, c) in rgb.iter_mut().zip(s.rgb) {
             *acc += c * w;
         }
-        let key = (count[g], mean_q);
-        let wins = key.0 > best_key.0
-            || (key.0 == best_key.0
-                && (key.1 > best_key.1 || (key.1 == best_key.1 && id[g] < id[best])));
-        if g == 0 || wins {
-            (best, best_key, best_shaded) = (g, key, Some(s));
+        if g == best {
+            majority = Some(s);
         }
     }
-    let majority = best_shaded.expect("a pixel has at least one sample");
-    let (depth, cos_incidence) = if id[best] == u32::MAX {
+    let majority = majority.expect("the majority is one of the groups");
+    let (depth, cos_incidence) = if groups.id[best] == u32::MAX {
         (0.0, 0.0)
     } else {
-        shader.depth_at(x, y, id[best], (majority.depth, majority.cos_incidence))
+        shader.depth_at(
+            x,
+            y,
+            groups.id[best],
+            (majority.depth, majority.cos_incidence),
+        )
     };
     Shaded {
         rgb,
@@ -112,40 +148,14 @@ pub(crate) fn resolve_depth(
     if ids[1..n].iter().all(|&id| id == first) {
         return shader.depth_only(x, y, first, mean_q(&q[..n]));
     }
-    let mut id = [u32::MAX; MAX_SAMPLES];
-    let mut count = [0u32; MAX_SAMPLES];
-    let mut sum = [[0.0f32; 3]; MAX_SAMPLES];
-    let mut groups = 0;
-    for (s, (&sid, &[dx, dy])) in ids.iter().zip(pattern).enumerate() {
-        let g = id[..groups]
-            .iter()
-            .position(|&i| i == sid)
-            .unwrap_or_else(|| {
-                id[groups] = sid;
-                groups += 1;
-                groups - 1
-            });
-        count[g] += 1;
-        sum[g] = [sum[g][0] + dx, sum[g][1] + dy, sum[g][2] + q[s]];
-    }
-    let (mut best, mut best_key) = (0, (0u32, f32::NEG_INFINITY));
-    for g in 0..groups {
-        let inv = 1.0 / count[g] as f32;
-        let key = (count[g], sum[g][2] * inv);
-        let wins = key.0 > best_key.0
-            || (key.0 == best_key.0
-                && (key.1 > best_key.1 || (key.1 == best_key.1 && id[g] < id[best])));
-        if g == 0 || wins {
-            (best, best_key) = (g, key);
-        }
-    }
-    if id[best] == u32::MAX {
+    let groups = Groups::of(pattern, ids, q);
+    let best = groups.majority();
+    if groups.id[best] == u32::MAX {
         return (0.0, 0.0);
     }
-    let inv = 1.0 / count[best] as f32;
-    let centroid = (x + sum[best][0] * inv, y + sum[best][1] * inv);
-    let majority = shader.depth_only(centroid.0, centroid.1, id[best], sum[best][2] * inv);
-    shader.depth_at(x, y, id[best], majority)
+    let (centroid, mean_q) = groups.centroid(best, (x, y));
+    let majority = shader.depth_only(centroid.0, centroid.1, groups.id[best], mean_q);
+    shader.depth_at(x, y, groups.id[best], majority)
 }
 
 #[cfg(test)]

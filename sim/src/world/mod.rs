@@ -93,38 +93,8 @@ impl World {
             return Self::build_segments(vineyard, terrain_cfg, terrain, world_seed);
         }
         let v = vineyard;
-        let (block_min, block_max) = {
-            let (lo, hi) = block_bounds(v);
-            let h = v.headland_m;
-            ([lo[0] - h, lo[1] - h], [hi[0] + h, hi[1] + h])
-        };
-        let margin = terrain_cfg.margin_m;
-        let extent = (
-            [block_min[0] - margin, block_min[1] - margin],
-            [block_max[0] + margin, block_max[1] + margin],
-        );
         // Tilled soil under the rows and lanes, grass on the headlands and beyond.
-        let last_row_y = (v.rows.max(1) - 1) as f64 * v.row_spacing_m;
-        let soil = |x: f64, y: f64| {
-            let inside = (-0.5..=v.row_length_m + 0.5).contains(&x)
-                && (-1.0..=last_row_y + 1.0).contains(&y);
-            if inside {
-                Material::Soil
-            } else {
-                Material::Grass
-            }
-        };
-        let ratio = (terrain_cfg.far_cell_m / terrain_cfg.cell_m)
-            .round()
-            .max(1.0) as usize;
-        let mut mesh = terrain.mesh(
-            (block_min, block_max),
-            extent,
-            terrain_cfg.cell_m,
-            ratio,
-            soil,
-        );
-
+        let (mut mesh, extent) = ground(v, terrain_cfg, &terrain, [0.5, 1.0]);
         let mut posts = Vec::new();
         for row in 0..v.rows {
             posts.extend(trellis::row_trellis(
@@ -135,17 +105,7 @@ impl World {
             ));
         }
 
-        let layout = VineLayout {
-            spacing_m: v.plant_spacing_m,
-            cordon_height_m: v
-                .wire_heights_m
-                .iter()
-                .copied()
-                .fold(f64::INFINITY, f64::min)
-                .min(v.post_height_m),
-            canopy_top_m: v.post_height_m,
-            growth_stage: v.growth_stage,
-        };
+        let layout = vine_layout(v, v.plant_spacing_m);
         let per_row = (v.row_length_m / v.plant_spacing_m).floor() as usize;
         let sites: Vec<(usize, usize)> = (0..v.rows)
             .flat_map(|r| (0..per_row).map(move |i| (r, i)))
@@ -210,33 +170,7 @@ impl World {
         terrain: Terrain,
         world_seed: u64,
     ) -> Self {
-        let (lo, hi) = block_bounds(v);
-        let h = v.headland_m;
-        let (block_min, block_max) = ([lo[0] - h, lo[1] - h], [hi[0] + h, hi[1] + h]);
-        let margin = terrain_cfg.margin_m;
-        let extent = (
-            [block_min[0] - margin, block_min[1] - margin],
-            [block_max[0] + margin, block_max[1] + margin],
-        );
-        let soil = |x: f64, y: f64| {
-            let inside = (lo[0] - 1.0..=hi[0] + 1.0).contains(&x)
-                && (lo[1] - 1.0..=hi[1] + 1.0).contains(&y);
-            if inside {
-                Material::Soil
-            } else {
-                Material::Grass
-            }
-        };
-        let ratio = (terrain_cfg.far_cell_m / terrain_cfg.cell_m)
-            .round()
-            .max(1.0) as usize;
-        let mut mesh = terrain.mesh(
-            (block_min, block_max),
-            extent,
-            terrain_cfg.cell_m,
-            ratio,
-            soil,
-        );
+        let (mut mesh, extent) = ground(v, terrain_cfg, &terrain, [1.0, 1.0]);
 
         // Posts at every segment's start and at its end unless another segment starts there.
         let ends: Vec<[Point3<f64>; 2]> = v
@@ -272,17 +206,7 @@ impl World {
             }
         }
 
-        let layout = VineLayout {
-            spacing_m: v.segment_length_m / plants_per_segment(v) as f64,
-            cordon_height_m: v
-                .wire_heights_m
-                .iter()
-                .copied()
-                .fold(f64::INFINITY, f64::min)
-                .min(v.post_height_m),
-            canopy_top_m: v.post_height_m,
-            growth_stage: v.growth_stage,
-        };
+        let layout = vine_layout(v, v.segment_length_m / plants_per_segment(v) as f64);
         let n = plants_per_segment(v);
         let sites: Vec<(usize, usize)> = (0..v.segments.len())
             .flat_map(|s| (0..n).map(move |i| (s, i)))
@@ -351,6 +275,61 @@ impl World {
             }
         }
         seen
+    }
+}
+
+/// The ground under and around the block: fine cells over the rows and headlands, coarse
+/// ones out to `margin_m` beyond; tilled soil within `soil_margin` (x, y) of the rows, grass
+/// elsewhere. The mesh and the modelled extent, (min, max).
+fn ground(
+    v: &VineyardConfig,
+    terrain_cfg: &TerrainConfig,
+    terrain: &Terrain,
+    soil_margin: [f64; 2],
+) -> (Mesh, ([f64; 2], [f64; 2])) {
+    let (lo, hi) = block_bounds(v);
+    let h = v.headland_m;
+    let (block_min, block_max) = ([lo[0] - h, lo[1] - h], [hi[0] + h, hi[1] + h]);
+    let margin = terrain_cfg.margin_m;
+    let extent = (
+        [block_min[0] - margin, block_min[1] - margin],
+        [block_max[0] + margin, block_max[1] + margin],
+    );
+    let soil = |x: f64, y: f64| {
+        let inside = (lo[0] - soil_margin[0]..=hi[0] + soil_margin[0]).contains(&x)
+            && (lo[1] - soil_margin[1]..=hi[1] + soil_margin[1]).contains(&y);
+        if inside {
+            Material::Soil
+        } else {
+            Material::Grass
+        }
+    };
+    let ratio = (terrain_cfg.far_cell_m / terrain_cfg.cell_m)
+        .round()
+        .max(1.0) as usize;
+    let mesh = terrain.mesh(
+        (block_min, block_max),
+        extent,
+        terrain_cfg.cell_m,
+        ratio,
+        soil,
+    );
+    (mesh, extent)
+}
+
+/// Where a vine sits in its trellis: cordons on the lowest wire (at most the post height),
+/// the canopy up to the post tops.
+fn vine_layout(v: &VineyardConfig, spacing_m: f64) -> VineLayout {
+    VineLayout {
+        spacing_m,
+        cordon_height_m: v
+            .wire_heights_m
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+            .min(v.post_height_m),
+        canopy_top_m: v.post_height_m,
+        growth_stage: v.growth_stage,
     }
 }
 

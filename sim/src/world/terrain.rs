@@ -122,17 +122,18 @@ impl Terrain {
         }
     }
 
+    /// The waves' sum at `p`, unweighted.
+    fn relief(&self, p: &Vector2<f64>) -> f64 {
+        self.waves
+            .iter()
+            .map(|w| w.amplitude * (w.k.dot(p) + w.phase).sin())
+            .sum::<f64>()
+    }
+
     pub fn height(&self, x: f64, y: f64) -> f64 {
         let p = Vector2::new(x, y);
         let (w, _) = self.weight(x, y);
-        let relief = if w == 0.0 {
-            0.0
-        } else {
-            self.waves
-                .iter()
-                .map(|w| w.amplitude * (w.k.dot(&p) + w.phase).sin())
-                .sum::<f64>()
-        };
+        let relief = if w == 0.0 { 0.0 } else { self.relief(&p) };
         self.slope.dot(&p) + w * relief
     }
 
@@ -149,10 +150,7 @@ impl Terrain {
         let relief = if dw == Vector2::zeros() {
             0.0
         } else {
-            self.waves
-                .iter()
-                .map(|w| w.amplitude * (w.k.dot(&p) + w.phase).sin())
-                .sum::<f64>()
+            self.relief(&p)
         };
         self.slope + relief_gradient * w + dw * relief
     }
