@@ -406,6 +406,9 @@ fn paper_bench_runs_on_the_papers_world_beside_its_table() {
     let out = tmp.path().join("paper");
     let stdout = shipped_bench_cut("configs/paper.toml", &out);
     let table = json(&out.join("table.json"));
+    // The report: every run, the maps of lio-sam, rtabmap (and its grid), orbslam2 and
+    // staticmapping.
+    crate::report::check_bench_report(&out, 5);
     let labels = [
         "wheel-odometry",
         "wheel-imu-odometry",
