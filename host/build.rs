@@ -1,4 +1,4 @@
-//! Link flags for the end-to-end test binary.
+//! Link flags for the end-to-end test binary, and the C plugin the tests load.
 //!
 //! `tests/e2e` links the plugin crates (lio-sam, rtabmap, orbslam2, staticmapping) as
 //! rlibs to test their parts directly, and each of them defines the exported static that
@@ -8,7 +8,50 @@
 //! loads every plugin from its own `.so`), so any one may stand: tell the linker so, for
 //! this package's integration tests only.
 
+//!
+//! `tests/c-plugin/c_odometry.c` is a plugin written against the C ABI
+//! (`plugin-api/include/vinebench_plugin.h`); it is compiled here with the C compiler the
+//! `cc` crate finds, into `$OUT_DIR`, and its path handed to the tests as
+//! `VINEBENCH_C_ODOMETRY`.
+
+use std::path::Path;
+
 fn main() {
     println!("cargo::rustc-link-arg-tests=-Wl,--allow-multiple-definition");
     println!("cargo::rerun-if-changed=build.rs");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let source = root.join("tests/c-plugin/c_odometry.c");
+    let include = root.join("plugin-api/include");
+    println!("cargo::rerun-if-changed={}", source.display());
+    println!(
+        "cargo::rerun-if-changed={}",
+        include.join("vinebench_plugin.h").display()
+    );
+    let out = Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join(format!(
+        "{}c_odometry{}",
+        std::env::consts::DLL_PREFIX,
+        std::env::consts::DLL_SUFFIX
+    ));
+    let compiler = cc::Build::new().get_compiler();
+    let status = compiler
+        .to_command()
+        .args([
+            "-shared",
+            "-fPIC",
+            "-O2",
+            "-std=c11",
+            "-Wall",
+            "-Werror",
+            "-ffp-contract=off",
+        ])
+        .arg("-I")
+        .arg(&include)
+        .arg(&source)
+        .arg("-o")
+        .arg(&out)
+        .arg("-lm")
+        .status()
+        .expect("the C compiler runs");
+    assert!(status.success(), "compiling {} failed", source.display());
+    println!("cargo::rustc-env=VINEBENCH_C_ODOMETRY={}", out.display());
 }

@@ -5,6 +5,10 @@
 //! time order, and evaluates. The ABI (abi_stable) stays inside this crate: you see plain
 //! Rust types, slices, `nalgebra` poses and `Result`s.
 //!
+//! Systems in C, C++ or any language that exports a C function implement the C ABI of
+//! `include/vinebench_plugin.h` instead (one table of plain C data and function pointers);
+//! the same loader takes both kinds of library and the host runs them alike.
+//!
 //! ```ignore
 //! use plugin_api::{export_plugin, PluginError, Requirements, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, Pose};
 //!
@@ -29,9 +33,11 @@
 //! ```
 
 // abi_stable's derives and `#[sabi_trait]` expand to unsafe code (raw vtables, FFI
-// function pointers); it is confined to the generated glue in `ffi` and the loader.
+// function pointers); it is confined to the generated glue in `ffi`, the loader and the C
+// ABI's host side (`c_abi`).
 #![allow(unsafe_code)]
 
+mod c_abi;
 mod ffi;
 mod loader;
 mod messages;

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use abi_stable::library::{LibraryError, lib_header_from_path};
 use abi_stable::std_types::{ROption, RResult, RString};
 
+use crate::c_abi::{CInstance, CPlugin};
 use crate::ffi::{
     LaserScanFfi, PluginModuleRef, PointCloudFfi, RgbdFrameFfi, SlamBox, output_from_ffi,
 };
@@ -41,7 +42,23 @@ pub struct LoadedPlugin {
     pub name: String,
     pub version: String,
     pub requirements: Requirements,
-    module: PluginModuleRef,
+    module: Module,
+}
+
+/// Which ABI a library speaks.
+#[derive(Clone)]
+enum Module {
+    Rust(PluginModuleRef),
+    C(CPlugin),
+}
+
+impl std::fmt::Debug for Module {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Module::Rust(_) => "Module::Rust",
+            Module::C(_) => "Module::C",
+        })
+    }
 }
 
 impl std::fmt::Debug for PluginModuleRef {
@@ -93,8 +110,22 @@ fn compatible_part(version: &str) -> &str {
     }
 }
 
-/// Loads the plugin library at `path`.
+/// Loads the plugin library at `path`: a C plugin (it exports `vinebench_plugin_v1`) or a
+/// Rust one (abi_stable's root module).
 pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
+    let other = |message: String| LoadError::Other {
+        path: path.to_owned(),
+        message,
+    };
+    if let Some(c) = CPlugin::open(path).map_err(|m| other(first_line(&m)))? {
+        return Ok(LoadedPlugin {
+            path: path.to_owned(),
+            name: c.name,
+            version: c.version,
+            requirements: c.requirements,
+            module: Module::C(c.plugin),
+        });
+    }
     let header = lib_header_from_path(path).map_err(|e| describe(path, e))?;
     // Compare versions before layouts: a version mismatch is the clearer message.
     let plugin_version = header.version_strings().version.as_str();
@@ -126,24 +157,30 @@ pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
         name: info.name.into_string(),
         version: info.version.into_string(),
         requirements,
-        module,
+        module: Module::Rust(module),
     })
 }
 
 impl LoadedPlugin {
     /// Creates the system with its parameter table (TOML, verbatim) and the rig.
     pub fn create(&self, config_toml: &str, rig: &Rig) -> Result<PluginInstance, PluginError> {
-        let create = self.module.create();
-        match create(config_toml.into(), rig.to_toml().as_str().into()) {
-            RResult::ROk(inner) => Ok(PluginInstance { inner }),
-            RResult::RErr(e) => Err(PluginError(e.into_string())),
+        match &self.module {
+            Module::Rust(module) => {
+                let create = module.create();
+                match create(config_toml.into(), rig.to_toml().as_str().into()) {
+                    RResult::ROk(inner) => Ok(PluginInstance::Rust(inner)),
+                    RResult::RErr(e) => Err(PluginError(e.into_string())),
+                }
+            }
+            Module::C(c) => c.create(config_toml, rig).map(PluginInstance::C),
         }
     }
 }
 
-/// A created plugin, driven by the host.
-pub struct PluginInstance {
-    inner: SlamBox,
+/// A created plugin, driven by the host: either kind, the same calls.
+pub enum PluginInstance {
+    Rust(SlamBox),
+    C(CInstance),
 }
 
 impl std::fmt::Debug for PluginInstance {
@@ -161,15 +198,25 @@ fn pose(r: RResult<ROption<Pose>, RString>) -> Result<Option<Pose>, PluginError>
 
 impl PluginInstance {
     pub fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
-        pose(self.inner.on_imu(imu))
+        match self {
+            Self::Rust(inner) => pose(inner.on_imu(imu)),
+            Self::C(c) => c.on_imu(imu),
+        }
     }
 
     pub fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
-        pose(self.inner.on_wheel_odometry(odom))
+        match self {
+            Self::Rust(inner) => pose(inner.on_wheel_odometry(odom)),
+            Self::C(c) => c.on_wheel_odometry(odom),
+        }
     }
 
     pub fn on_point_cloud(&mut self, c: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
-        pose(self.inner.on_point_cloud(PointCloudFfi {
+        let inner = match self {
+            Self::Rust(inner) => inner,
+            Self::C(instance) => return instance.on_point_cloud(c),
+        };
+        pose(inner.on_point_cloud(PointCloudFfi {
             stamp_ns: c.stamp_ns,
             sensor: c.sensor.into(),
             points: c.points.into(),
@@ -177,7 +224,11 @@ impl PluginInstance {
     }
 
     pub fn on_laser_scan(&mut self, s: &LaserScan<'_>) -> Result<Option<Pose>, PluginError> {
-        pose(self.inner.on_laser_scan(LaserScanFfi {
+        let inner = match self {
+            Self::Rust(inner) => inner,
+            Self::C(instance) => return instance.on_laser_scan(s),
+        };
+        pose(inner.on_laser_scan(LaserScanFfi {
             stamp_ns: s.stamp_ns,
             sensor: s.sensor.into(),
             angle_min_rad: s.angle_min_rad,
@@ -191,7 +242,11 @@ impl PluginInstance {
     }
 
     pub fn on_rgbd(&mut self, f: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
-        pose(self.inner.on_rgbd(RgbdFrameFfi {
+        let inner = match self {
+            Self::Rust(inner) => inner,
+            Self::C(instance) => return instance.on_rgbd(f),
+        };
+        pose(inner.on_rgbd(RgbdFrameFfi {
             stamp_ns: f.stamp_ns,
             sensor: f.sensor.into(),
             width: f.width,
@@ -203,9 +258,12 @@ impl PluginInstance {
     }
 
     pub fn finish(&mut self) -> Result<SlamOutput, PluginError> {
-        match self.inner.finish() {
-            RResult::ROk(o) => output_from_ffi(o).map_err(PluginError),
-            RResult::RErr(e) => Err(PluginError(e.into_string())),
+        match self {
+            Self::Rust(inner) => match inner.finish() {
+                RResult::ROk(o) => output_from_ffi(o).map_err(PluginError),
+                RResult::RErr(e) => Err(PluginError(e.into_string())),
+            },
+            Self::C(c) => c.finish(),
         }
     }
 }

@@ -459,6 +459,79 @@ fn paper_bench_runs_on_the_papers_world_beside_its_table() {
     );
 }
 
+/// A plugin written in C against `plugin-api/include/vinebench_plugin.h`
+/// (`tests/c-plugin/c_odometry.c`, compiled by host/build.rs) is loaded from its `.so` by
+/// path beside the Rust `wheel-odometry` baseline, and runs the same way: its online and
+/// final trajectories are byte for byte the Rust plugin's (the same integration, in C),
+/// its map and its event reach the results; and a C plugin that refuses to start, returns
+/// an error or segfaults fails its own run only, with the plugin's own message or the
+/// signal as the reason.
+#[test]
+fn a_c_plugin_runs_like_a_rust_one_and_its_faults_cost_its_own_run() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let c = PathBuf::from(env!("VINEBENCH_C_ODOMETRY"));
+    let rust = plugin_lib("wheel_odometry");
+    let entry = |label: &str, lib: &Path, params: &str| {
+        format!(
+            "[[plugins]]\npath = \"{}\"\nlabel = \"{label}\"\n[plugins.params]\n{params}\n",
+            lib.display()
+        )
+    };
+    let toml = [
+        "scenarios = [\"s1\"]\nseed = 3\nmax_time_s = 30.0\njobs = 2\n".to_owned(),
+        entry("c-odometry", &c, ""),
+        entry("rust-odometry", &rust, "yaw_source = \"wheels\""),
+        entry("c-create", &c, "fault = \"create\""),
+        entry("c-error", &c, "fault = \"error\"\nafter = 100"),
+        entry("c-segfault", &c, "fault = \"segfault\"\nafter = 100"),
+    ]
+    .concat();
+    let (o, out) = run_bench(tmp.path(), "c", &toml);
+    assert!(o.status.success(), "bench failed: {}", text(&o.stderr));
+    let table = json(&out.join("table.json"));
+    let run = |label: &str| table["s1"][label].clone();
+    assert_eq!(run("c-odometry")["status"], "ok", "{}", table["s1"]);
+    assert_eq!(run("rust-odometry")["status"], "ok", "{}", table["s1"]);
+    for (label, reason) in [
+        ("c-create", "c-odometry: refused to start (fault = create)"),
+        ("c-error", "c-odometry: deliberate error at"),
+        ("c-segfault", "segmentation fault"),
+    ] {
+        let status = run(label)["status"].as_str().unwrap_or_default().to_owned();
+        assert!(
+            status.starts_with("failed") && status.contains(reason),
+            "{label}: expected a failure naming {reason:?}, got {status:?}"
+        );
+    }
+    let dir = |label: &str| out.join("s1").join(label);
+    for file in ["estimate.tum", "online.tum"] {
+        let (c, rust) = (
+            std::fs::read(dir("c-odometry").join(file)).expect("C plugin's file"),
+            std::fs::read(dir("rust-odometry").join(file)).expect("Rust plugin's file"),
+        );
+        assert!(c.len() > 1000, "{file}: {} bytes", c.len());
+        assert!(
+            c == rust,
+            "{file}: the C plugin's differs from the Rust plugin's"
+        );
+    }
+    assert_eq!(run("c-odometry")["rmse"], run("rust-odometry")["rmse"]);
+    let poses = std::fs::read_to_string(dir("c-odometry").join("estimate.tum"))
+        .expect("estimate")
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .count();
+    let events = std::fs::read_to_string(dir("c-odometry").join("events.json")).expect("events");
+    assert!(
+        events.contains(&format!("c-odometry: {poses} poses from C")),
+        "the C plugin's event: {events}"
+    );
+    assert!(
+        dir("c-odometry").join("map.ply").exists(),
+        "the C plugin's map"
+    );
+}
+
 /// Every fault of the injection plugin, inside one bench beside a healthy plugin: the bench
 /// finishes, each faulty run is reported failed with the right reason, and the healthy
 /// run's results are byte-identical to those of a clean bench.
