@@ -27,31 +27,47 @@ fn main() {
         "cargo::rerun-if-changed={}",
         include.join("vinebench_plugin.h").display()
     );
-    let out = Path::new(&std::env::var("OUT_DIR").expect("cargo sets OUT_DIR")).join(format!(
-        "{}c_odometry{}",
-        std::env::consts::DLL_PREFIX,
-        std::env::consts::DLL_SUFFIX
-    ));
+    let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
     let compiler = cc::Build::new().get_compiler();
-    let status = compiler
-        .to_command()
-        .args([
-            "-shared",
-            "-fPIC",
-            "-O2",
-            "-std=c11",
-            "-Wall",
-            "-Werror",
-            "-ffp-contract=off",
-        ])
-        .arg("-I")
-        .arg(&include)
-        .arg(&source)
-        .arg("-o")
-        .arg(&out)
-        .arg("-lm")
-        .status()
-        .expect("the C compiler runs");
-    assert!(status.success(), "compiling {} failed", source.display());
-    println!("cargo::rustc-env=VINEBENCH_C_ODOMETRY={}", out.display());
+    // The plugin, and the same claiming ABI version 99 (each in a folder of its own, so that
+    // the good one's folder holds only it).
+    for (folder, define, variable) in [
+        ("c-plugin", None, "VINEBENCH_C_ODOMETRY"),
+        (
+            "c-plugin-v99",
+            Some("-DC_ODOMETRY_ABI_VERSION=99"),
+            "VINEBENCH_C_ODOMETRY_V99",
+        ),
+    ] {
+        let dir = Path::new(&out_dir).join(folder);
+        std::fs::create_dir_all(&dir).expect("create the C plugin's folder");
+        let out = dir.join(format!(
+            "{}c_odometry{}",
+            std::env::consts::DLL_PREFIX,
+            std::env::consts::DLL_SUFFIX
+        ));
+        let mut command = compiler.to_command();
+        command
+            .args([
+                "-shared",
+                "-fPIC",
+                "-O2",
+                "-std=c11",
+                "-Wall",
+                "-Werror",
+                "-ffp-contract=off",
+            ])
+            .arg("-I")
+            .arg(&include)
+            .args(define);
+        let status = command
+            .arg(&source)
+            .arg("-o")
+            .arg(&out)
+            .arg("-lm")
+            .status()
+            .expect("the C compiler runs");
+        assert!(status.success(), "compiling {} failed", source.display());
+        println!("cargo::rustc-env={variable}={}", out.display());
+    }
 }

@@ -5,7 +5,8 @@
  * for byte. It reports one event, a map of its first three positions, and can be told to
  * fail (parameters `fault = "create" | "error" | "segfault"`, after `after` messages).
  *
- * Built by host/build.rs for the end-to-end tests: cc -shared -fPIC -ffp-contract=off.
+ * Built by host/build.rs for the end-to-end tests: cc -shared -fPIC -ffp-contract=off (and
+ * once more with -DC_ODOMETRY_ABI_VERSION=99, a library the host must refuse).
  */
 #include <math.h>
 #include <stdio.h>
@@ -149,8 +150,13 @@ static int32_t finish(void *self, vb_output *out) {
     return 0;
 }
 
+/* The tests also build it claiming another ABI version, which the host must refuse. */
+#ifndef C_ODOMETRY_ABI_VERSION
+#define C_ODOMETRY_ABI_VERSION VB_ABI_VERSION
+#endif
+
 static const vb_plugin table = {
-    .abi_version = VB_ABI_VERSION,
+    .abi_version = C_ODOMETRY_ABI_VERSION,
     .struct_size = sizeof(vb_plugin),
     .name = "c-odometry",
     .version = "0.1.0",

@@ -530,6 +530,49 @@ fn a_c_plugin_runs_like_a_rust_one_and_its_faults_cost_its_own_run() {
         dir("c-odometry").join("map.ply").exists(),
         "the C plugin's map"
     );
+
+    // Found by name on the search path and listed, like a Rust plugin.
+    let folder = c.parent().expect("the C plugin's folder");
+    let listed = vinebench(&["plugins", "--plugin-dir", folder.to_str().expect("utf-8")]);
+    let listing = text(&listed.stdout);
+    let line = listing
+        .lines()
+        .find(|l| l.starts_with("c-odometry"))
+        .unwrap_or_else(|| panic!("not listed:\n{listing}"));
+    assert!(
+        line.contains("0.1.0") && line.contains("wheel_odometry"),
+        "name, version, requirements: {line}"
+    );
+    // A C plugin built against another version of the header is refused in one line.
+    let v99 = PathBuf::from(env!("VINEBENCH_C_ODOMETRY_V99"));
+    let bad = tmp.path().join("bad");
+    let o = vinebench(&[
+        "run",
+        "--scenario",
+        "s0",
+        "--plugin",
+        v99.to_str().expect("utf-8"),
+        "--max-time",
+        "5",
+        "--out",
+        bad.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        !o.status.success(),
+        "a refused plugin's run fails the command"
+    );
+    let status = json(&bad.join("table.json"))["s0"]
+        .as_object()
+        .and_then(|m| m.values().next())
+        .map(|v| v["status"].to_string())
+        .unwrap_or_default();
+    assert!(
+        status.contains("built against the C ABI version 99")
+            && status.contains("version 1")
+            && !status.contains('\n'),
+        "one clear line naming both versions, got {status} (stderr: {})",
+        text(&o.stderr)
+    );
 }
 
 /// Every fault of the injection plugin, inside one bench beside a healthy plugin: the bench
