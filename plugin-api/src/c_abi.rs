@@ -13,7 +13,7 @@ use std::path::Path;
 
 use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::Rig;
-use crate::system::{Event, OccupancyGrid, PluginError, Requirements, SlamOutput};
+use crate::system::{OccupancyGrid, PluginError, Requirements, SlamOutput};
 
 /// The header's `VB_ABI_VERSION`.
 pub const ABI_VERSION: u32 = 1;
@@ -386,14 +386,7 @@ impl CInstance {
         } else {
             // SAFETY: NUL-terminated, kept alive by the plugin.
             let toml_text = unsafe { text(o.events_toml, "events_toml") }.map_err(|e| bad(&e))?;
-            #[derive(serde::Deserialize)]
-            struct Events {
-                #[serde(default)]
-                events: Vec<Event>,
-            }
-            toml::from_str::<Events>(&toml_text)
-                .map_err(|e| bad(&format!("events_toml: {}", e.message())))?
-                .events
+            crate::ffi::events_from_toml(&toml_text).map_err(|e| bad(&e))?
         };
         Ok(SlamOutput {
             trajectory,

@@ -230,10 +230,16 @@ fn output_to_ffi(o: SlamOutput) -> OutputFfi {
     }
 }
 
+/// The events of a plugin's output, as both ABIs carry them: TOML `[[events]]` tables.
+pub fn events_from_toml(text: &str) -> Result<Vec<Event>, String> {
+    toml::from_str::<Events>(text)
+        .map(|e| e.events)
+        .map_err(|e| format!("events: {}", e.message()))
+}
+
 /// Back to the author-side type (host side).
 pub fn output_from_ffi(o: OutputFfi) -> Result<SlamOutput, String> {
-    let events: Events =
-        toml::from_str(&o.events_toml).map_err(|e| format!("events: {}", e.message()))?;
+    let events = events_from_toml(&o.events_toml)?;
     Ok(SlamOutput {
         trajectory: o.trajectory.into_vec(),
         map: o.map.into_option().map(RVec::into_vec),
@@ -244,7 +250,7 @@ pub fn output_from_ffi(o: OutputFfi) -> Result<SlamOutput, String> {
             height: g.height,
             cells: g.cells.into_vec(),
         }),
-        events: events.events,
+        events,
     })
 }
 

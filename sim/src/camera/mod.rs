@@ -114,6 +114,8 @@ const BAND_ROWS: usize = 8;
 pub struct RgbdCamera {
     cfg: CameraConfig,
     intrinsics: Intrinsics,
+    /// The separate depth camera's, where there is one (`depth_hfov_deg`).
+    depth_intrinsics: Option<Intrinsics>,
     base_from_camera_optical: Isometry3<f64>,
     chunks: Chunks,
     light: Light,
@@ -137,6 +139,7 @@ impl RgbdCamera {
         Self {
             cfg: cfg.clone(),
             intrinsics: Intrinsics::from_config(cfg),
+            depth_intrinsics: cfg.depth_hfov_deg.map(|h| Intrinsics::with_hfov(cfg, h)),
             base_from_camera_optical: cfg.mount.base_from_sensor() * camera_from_optical(),
             chunks,
             light,
@@ -191,26 +194,34 @@ impl RgbdCamera {
         let far = self.cfg.colour_far_clip_m.map(|f| f as f32);
         let (rgb, mut depth, mut cos_incidence) =
             self.pass(&world_from_optical, &self.intrinsics, far, &effects, true);
-        if let Some(hfov) = self.cfg.depth_hfov_deg {
+        if let Some(k) = &self.depth_intrinsics {
             match self.cfg.depth_registration {
                 DepthRegistration::Stretched => {
                     // The depth camera's own image, handed over pixel for pixel.
-                    let k = Intrinsics::with_hfov(&self.cfg, hfov);
-                    let (_, d, c) = self.pass(&world_from_optical, &k, None, &effects, false);
+                    let (_, d, c) = self.pass(&world_from_optical, k, None, &effects, false);
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
-                    // The same centre: registration keeps the rays the depth camera sees.
-                    let k = Intrinsics::with_hfov(&self.cfg, hfov);
+                    // The same centre: registration keeps the rays the depth camera sees,
+                    // the columns and rows within its view (row by row: no division per pixel).
                     let c = self.intrinsics;
                     let (tx, ty) = (
                         (0.5 * k.width as f64) / k.fx,
                         (0.5 * k.height as f64) / k.fy,
                     );
-                    for (i, (z, cos)) in depth.iter_mut().zip(&mut cos_incidence).enumerate() {
-                        let (u, v) = ((i % w) as f64, (i / w) as f64);
-                        if ((u - c.cx) / c.fx).abs() > tx || ((v - c.cy) / c.fy).abs() > ty {
-                            (*z, *cos) = (0.0, 0.0);
+                    let seen_u: Vec<bool> = (0..w)
+                        .map(|u| ((u as f64 - c.cx) / c.fx).abs() <= tx)
+                        .collect();
+                    for (v, (z, cos)) in depth
+                        .chunks_exact_mut(w)
+                        .zip(cos_incidence.chunks_exact_mut(w))
+                        .enumerate()
+                    {
+                        let row_seen = ((v as f64 - c.cy) / c.fy).abs() <= ty;
+                        for ((z, cos), &seen) in z.iter_mut().zip(cos.iter_mut()).zip(&seen_u) {
+                            if !(row_seen && seen) {
+                                (*z, *cos) = (0.0, 0.0);
+                            }
                         }
                     }
                 }

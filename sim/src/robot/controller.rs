@@ -147,7 +147,8 @@ pub fn drive(route: &Route, cfg: &RobotConfig) -> Option<Vec<PlanarSample>> {
     Some(out)
 }
 
-fn wrap(a: f64) -> f64 {
+/// `a` wrapped to [-π, π).
+pub(super) fn wrap(a: f64) -> f64 {
     (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 

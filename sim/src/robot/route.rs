@@ -149,7 +149,7 @@ impl Route {
 }
 
 /// Smallest turn on the spot worth a leg of its own (1°).
-const MIN_TURN_RAD: f64 = 0.017_453_292_519_943_295;
+const MIN_TURN_RAD: f64 = std::f64::consts::PI / 180.0;
 
 /// The legs of a goal sequence: turn towards the next goal, drive straight to it, turn to
 /// its heading (each turn only where it exceeds [`MIN_TURN_RAD`]).
@@ -159,9 +159,7 @@ fn goal_legs(
     goals: &[[f64; 3]],
     heading: impl Fn(f64) -> f64,
 ) -> Vec<Leg> {
-    let off = |a: f64, b: f64| {
-        (a - b + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-    };
+    let off = |a: f64, b: f64| super::controller::wrap(a - b);
     let (mut at, mut yaw) = (start, start_yaw);
     let mut legs = Vec::new();
     for goal in goals {
