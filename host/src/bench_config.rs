@@ -39,6 +39,10 @@ pub struct PluginEntry {
     pub path: Option<PathBuf>,
     /// Column label in the report (default: the name or the file stem).
     pub label: Option<String>,
+    /// How fast the runner feeds it: `"free"` (default, as fast as it takes the messages)
+    /// or `"realtime"` (no faster than simulated time, for systems with threads of their own).
+    #[serde(default)]
+    pub pace: crate::runner::Pace,
     /// The plugin's parameters, handed to it verbatim as TOML.
     #[serde(default)]
     pub params: toml::Table,
@@ -65,6 +69,9 @@ pub struct ResolvedPlugin {
     pub label: String,
     pub library: PathBuf,
     pub params_toml: String,
+    pub pace: crate::runner::Pace,
+    /// The bench file's folder, absolute: what the plugin's relative paths are relative to.
+    pub base_dir: PathBuf,
 }
 
 /// A route limit must be a positive, finite number of seconds; the reason when not.
@@ -161,6 +168,8 @@ impl BenchConfig {
     /// TOML), in file order. `file` names the culprit in the error.
     pub fn resolve_plugins(&self, file: &Path) -> anyhow::Result<Vec<ResolvedPlugin>> {
         let dirs = crate::plugins::search_path(&self.plugin_dirs);
+        let base_dir = std::path::absolute(file.parent().unwrap_or(Path::new(".")))
+            .with_context(|| file.display().to_string())?;
         self.plugins
             .iter()
             .map(|entry| {
@@ -175,6 +184,8 @@ impl BenchConfig {
                     label: entry.label(),
                     library,
                     params_toml: toml::to_string(&entry.params)?,
+                    pace: entry.pace,
+                    base_dir: base_dir.clone(),
                 })
             })
             .collect()

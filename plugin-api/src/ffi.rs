@@ -46,6 +46,10 @@ pub struct PluginModule {
     #[sabi(last_prefix_field)]
     pub create:
         extern "C" fn(config_toml: RStr<'_>, rig_toml: RStr<'_>) -> RResult<SlamBox, RString>,
+    /// [`crate::Requirements`] as TOML for a parameter table (appended: absent from plugins
+    /// built before it, whose `info` requirements then stand).
+    #[sabi(missing_field(option))]
+    pub requirements_for: extern "C" fn(config_toml: RStr<'_>) -> RResult<RString, RString>,
 }
 
 impl RootModule for PluginModuleRef {
@@ -266,6 +270,14 @@ extern "C" fn info<T: SlamSystem>() -> PluginInfoFfi {
     }
 }
 
+extern "C" fn requirements_for<T: SlamSystem>(config_toml: RStr<'_>) -> RResult<RString, RString> {
+    guard(|| T::requirements_for(config_toml.as_str()))
+        .and_then(|r| toml::to_string(&r).map_err(|e| e.to_string()))
+        .map(RString::from)
+        .map_err(RString::from)
+        .into()
+}
+
 extern "C" fn create<T: SlamSystem>(
     config_toml: RStr<'_>,
     rig_toml: RStr<'_>,
@@ -284,6 +296,7 @@ pub fn module<T: SlamSystem>() -> PluginModuleRef {
     PluginModule {
         info: info::<T>,
         create: create::<T>,
+        requirements_for: requirements_for::<T>,
     }
     .leak_into_prefix()
 }

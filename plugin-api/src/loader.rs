@@ -162,6 +162,27 @@ pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
 }
 
 impl LoadedPlugin {
+    /// The requirements for this parameter table: the plugin's answer when it takes the
+    /// parameters into account (a Rust plugin's [`crate::SlamSystem::requirements_for`]),
+    /// else the requirements it gave when loaded (every C plugin, older Rust plugins).
+    pub fn requirements_for(&self, config_toml: &str) -> Result<Requirements, PluginError> {
+        let Module::Rust(module) = &self.module else {
+            return Ok(self.requirements.clone());
+        };
+        let Some(ask) = module.requirements_for() else {
+            return Ok(self.requirements.clone());
+        };
+        match ask(config_toml.into()) {
+            RResult::ROk(text) => toml::from_str(text.as_str()).map_err(|e| {
+                PluginError(format!("unreadable requirements: {}", e.message()))
+            }),
+            RResult::RErr(e) => Err(PluginError(format!(
+                "requirements failed: {}",
+                e.into_string()
+            ))),
+        }
+    }
+
     /// Creates the system with its parameter table (TOML, verbatim) and the rig.
     pub fn create(&self, config_toml: &str, rig: &Rig) -> Result<PluginInstance, PluginError> {
         match &self.module {

@@ -165,8 +165,8 @@ pub struct SlamOutput {
 /// A SLAM system as a plugin author writes it.
 ///
 /// Lifecycle, in this order:
-/// 1. [`SlamSystem::requirements`] — asked before anything else, to decide which sensors
-///    to simulate and stream;
+/// 1. [`SlamSystem::requirements`] (or [`SlamSystem::requirements_for`] with the parameters)
+///    — asked before anything else, to decide which sensors to simulate and stream;
 /// 2. [`SlamSystem::new`] — with the plugin's parameter table (the TOML the user wrote for
 ///    it, verbatim) and the sensor rig;
 /// 3. the message callbacks, in timestamp order of availability (a lidar sweep arrives at its
@@ -184,6 +184,15 @@ pub trait SlamSystem: Sized + Send + 'static {
     const VERSION: &'static str;
 
     fn requirements() -> Requirements;
+
+    /// The requirements for this parameter table (the TOML [`SlamSystem::new`] will get):
+    /// asked instead of [`SlamSystem::requirements`] when the host knows the parameters, for
+    /// a plugin whose sensors depend on them (a bridge hosting a system named in its
+    /// parameters). The default ignores them.
+    fn requirements_for(config_toml: &str) -> Result<Requirements, PluginError> {
+        let _ = config_toml;
+        Ok(Self::requirements())
+    }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError>;
 

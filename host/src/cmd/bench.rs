@@ -57,6 +57,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 label: p.label.clone(),
                 plugin: p.library.clone(),
                 params_toml: p.params_toml.clone(),
+                pace: p.pace,
+                base_dir: Some(p.base_dir.clone()),
             });
         }
     }

@@ -82,6 +82,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             label,
             plugin: path,
             params_toml,
+            pace: crate::runner::Pace::Free,
+            base_dir: None,
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(args.timeout_s),

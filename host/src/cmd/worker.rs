@@ -1,6 +1,6 @@
 //! `vinebench worker --job FILE` (hidden): one run in its own process, started by the
-//! supervisor of `run` and `bench`. `vinebench worker --sensors PLUGIN` prints the sensors
-//! a plugin asks for, so the supervisor can share one simulation between runs without
+//! supervisor of `run` and `bench`. `vinebench worker --sensors PLUGIN [--params TOML]`
+//! prints the sensors a plugin asks for (for those parameters), so the supervisor can share one simulation between runs without
 //! loading any plugin into its own process.
 
 use std::path::PathBuf;
@@ -18,13 +18,19 @@ pub struct WorkerArgs {
     /// Print the sensors this plugin library asks for (one line, comma-separated) and exit.
     #[arg(long, conflicts_with = "job")]
     pub sensors: Option<PathBuf>,
+    /// With `--sensors`: the plugin's parameter table (TOML), for a plugin whose sensors
+    /// depend on it.
+    #[arg(long, requires = "sensors", default_value = "")]
+    pub params: String,
 }
 
 pub fn run(args: &WorkerArgs) -> anyhow::Result<()> {
     if let Some(plugin) = &args.sensors {
         let loaded = plugin_api::load(plugin)?;
-        let names: Vec<&str> = loaded
-            .requirements
+        let requirements = loaded
+            .requirements_for(&args.params)
+            .map_err(|e| anyhow::anyhow!("plugin {}: {e}", loaded.name))?;
+        let names: Vec<&str> = requirements
             .sensors
             .iter()
             .map(|k| k.name())

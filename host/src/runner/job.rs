@@ -31,6 +31,24 @@ pub struct Job {
     /// scenario ([`super::feed`]), instead of simulating here.
     #[serde(default)]
     pub fed: bool,
+    /// How fast to feed the plugin ([`Pace`]).
+    #[serde(default)]
+    pub pace: Pace,
+}
+
+/// How fast the worker feeds a plugin (`pace` of a `[[plugins]]` entry).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Pace {
+    /// As fast as the plugin takes the messages (the default): the run's length is the
+    /// plugin's compute time.
+    #[default]
+    Free,
+    /// No faster than simulated time, as a robot's sensors would deliver them: each message
+    /// is handed over no earlier than its stamp after the first message's, on the wall
+    /// clock. For systems with threads of their own (ORB-SLAM3's local mapping and loop
+    /// closing), whose results depend on how much time those threads get between frames.
+    Realtime,
 }
 
 /// File names inside a run folder.

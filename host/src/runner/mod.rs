@@ -20,7 +20,7 @@ use anyhow::Context as _;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 pub use evaluate::{Metrics, alignment_from_name, alignment_name, evaluate};
-pub use job::{Job, files};
+pub use job::{Job, Pace, files};
 pub use outputs::{read_ply, write_grid};
 
 use crate::report::{RunRecord, RunStatus, ScenarioTruth};
@@ -35,6 +35,10 @@ pub struct PlannedRun {
     pub label: String,
     pub plugin: PathBuf,
     pub params_toml: String,
+    pub pace: Pace,
+    /// The folder the plugin's relative paths are relative to (the bench file's): handed
+    /// to the worker as `VINEBENCH_BENCH_DIR`. `None`: the current folder.
+    pub base_dir: Option<PathBuf>,
 }
 
 /// A resolved matrix.
@@ -244,6 +248,7 @@ fn run_all(
             dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
             max_time_s: plan.max_time_s,
             fed: fed[i],
+            pace: run.pace,
         };
         worker::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));
@@ -337,17 +342,19 @@ const STALL: Duration = Duration::from_secs(300);
 /// sensors cannot be read (it fails to load) runs alone, to fail in its own worker.
 fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
     let share = plan.share_simulation && plan.dataset.is_none();
-    let mut probed: BTreeMap<&Path, Option<sim::SensorSet>> = BTreeMap::new();
+    let mut probed: BTreeMap<(&Path, &str), Option<sim::SensorSet>> = BTreeMap::new();
     let sensors: Vec<Option<sim::SensorSet>> = plan
         .runs
         .iter()
         .map(|r| {
-            if !share {
+            // A paced run simulates alone: in a shared stream it would hold the others
+            // back to its pace.
+            if !share || r.pace == Pace::Realtime {
                 return None;
             }
             *probed
-                .entry(r.plugin.as_path())
-                .or_insert_with(|| probe_sensors(&r.plugin))
+                .entry((r.plugin.as_path(), r.params_toml.as_str()))
+                .or_insert_with(|| probe_sensors(&r.plugin, &r.params_toml))
         })
         .collect();
     let scenario_len = |s: &str| {
@@ -392,14 +399,17 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
     shared
 }
 
-/// The sensors a plugin library asks for, read in a child process (`vinebench worker
-/// --sensors`) so that no plugin is ever loaded into the supervisor; `None` if that fails.
-fn probe_sensors(plugin: &Path) -> Option<sim::SensorSet> {
+/// The sensors a plugin library asks for with these parameters, read in a child process
+/// (`vinebench worker --sensors`) so that no plugin is ever loaded into the supervisor;
+/// `None` if that fails.
+fn probe_sensors(plugin: &Path, params_toml: &str) -> Option<sim::SensorSet> {
     let exe = std::env::current_exe().ok()?;
     let mut child = std::process::Command::new(exe)
         .arg("worker")
         .arg("--sensors")
         .arg(plugin)
+        .arg("--params")
+        .arg(params_toml)
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
@@ -447,7 +457,7 @@ fn run_shared(
     let mut started = Vec::new();
     let mut subscribers = Vec::new();
     for (k, &i) in group.runs.iter().enumerate() {
-        match supervise::spawn(&dirs[i], true) {
+        match supervise::spawn(&dirs[i], true, plan.runs[i].base_dir.as_deref()) {
             Ok((child, Some(stdin))) => {
                 started.push((i, child));
                 subscribers.push(feed::Subscriber {
@@ -519,7 +529,13 @@ fn run_shared(
 
 fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunRecord {
     let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
-    let outcome = supervise::supervise(dir, plan.timeout, plan.memory_limit_mb, &on_progress);
+    let outcome = supervise::supervise(
+        dir,
+        run.base_dir.as_deref(),
+        plan.timeout,
+        plan.memory_limit_mb,
+        &on_progress,
+    );
     finish_run(run, dir, plan, outcome)
 }
 

@@ -17,18 +17,24 @@ const POLL: Duration = Duration::from_millis(20);
 /// advances. `Err` is the failure reason.
 pub fn supervise(
     run_dir: &Path,
+    base_dir: Option<&Path>,
     timeout: Duration,
     memory_limit_mb: u64,
     progress: &(dyn Fn(f64) + Sync),
 ) -> Result<(), String> {
-    let (child, _) = spawn(run_dir, false)?;
+    let (child, _) = spawn(run_dir, false, base_dir)?;
     watch(child, run_dir, timeout, memory_limit_mb, progress)
 }
 
 /// Starts the worker on the job file in `run_dir` (absolute), in that folder. With `fed`,
 /// its stdin is a pipe, returned for the caller to stream the simulation into
-/// ([`super::feed`]); otherwise it reads nothing.
-pub fn spawn(run_dir: &Path, fed: bool) -> Result<(Child, Option<ChildStdin>), String> {
+/// ([`super::feed`]); otherwise it reads nothing. `base_dir` (absolute), the folder the
+/// plugin's relative paths are relative to, is its `VINEBENCH_BENCH_DIR`.
+pub fn spawn(
+    run_dir: &Path,
+    fed: bool,
+    base_dir: Option<&Path>,
+) -> Result<(Child, Option<ChildStdin>), String> {
     let exe = std::env::current_exe()
         .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
     let log_path = run_dir.join(files::LOG);
@@ -36,7 +42,11 @@ pub fn spawn(run_dir: &Path, fed: bool) -> Result<(Child, Option<ChildStdin>), S
         std::fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
     // The worker runs in its run folder, so a relative output path in a plugin's
     // parameters (lio-sam's `profile_csv`, say) lands beside the run's other files.
-    let mut child = Command::new(exe)
+    let mut command = Command::new(exe);
+    if let Some(dir) = base_dir {
+        command.env("VINEBENCH_BENCH_DIR", dir);
+    }
+    let mut child = command
         .current_dir(run_dir)
         .arg("worker")
         .arg("--job")

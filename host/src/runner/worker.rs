@@ -16,7 +16,7 @@ use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
 
 use super::feed::{AHEAD, FeedReader};
-use super::job::{Job, files};
+use super::job::{Job, Pace, files};
 use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
 
 /// Which sensors to simulate for a plugin's requirements (ground truth always).
@@ -37,6 +37,35 @@ pub fn sensor_set(kinds: &[SensorKind]) -> SensorSet {
     set
 }
 
+/// Holds messages back to simulated time under [`Pace::Realtime`]; does nothing under
+/// [`Pace::Free`].
+#[derive(Debug)]
+struct Pacer {
+    pace: Pace,
+    /// The wall-clock instant and stamp of the first message.
+    start: Option<(Instant, i64)>,
+}
+
+impl Pacer {
+    fn new(pace: Pace) -> Self {
+        Self { pace, start: None }
+    }
+
+    /// Sleeps until `stamp_ns` is due: its distance from the first stamp, on the wall clock
+    /// since the first message.
+    fn wait_for(&mut self, stamp_ns: i64) {
+        if self.pace == Pace::Free {
+            return;
+        }
+        let (t0, first) = *self.start.get_or_insert((Instant::now(), stamp_ns));
+        let due = t0 + std::time::Duration::from_nanos(stamp_ns.saturating_sub(first).max(0) as u64);
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+    }
+}
+
 /// Runs the job; an error is the run's failure reason.
 pub fn work(job: &Job) -> anyhow::Result<()> {
     let limit = job.memory_limit_mb.saturating_mul(1 << 20);
@@ -44,10 +73,13 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = sim::SimConfig::load(job.world.as_deref())?;
     let plugin = plugin_api::load(&job.plugin)?;
-    let sensors = sensor_set(&plugin.requirements.sensors);
+    let requirements = plugin
+        .requirements_for(&job.params_toml)
+        .map_err(|e| anyhow!("plugin {}: {e}", plugin.name))?;
+    let sensors = sensor_set(&requirements.sensors);
     let sim = Simulation::new(&config, &job.scenario, job.seed)?;
     let rig = crate::rig::rig(&config);
-    write_run_toml(job, &config, &plugin)?;
+    write_run_toml(job, &config, &plugin, &requirements)?;
     let mut instance = plugin
         .create(&job.params_toml, &rig)
         .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
@@ -84,12 +116,14 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
                 }
             }
         });
+        let mut clock = Pacer::new(job.pace);
         for message in rx {
             if let Message::GroundTruth(gt) = &message {
                 groundtruth.push(Pose::new(gt.stamp_ns, &gt.world_from_base));
                 continue;
             }
             let stamp = message.stamp_ns();
+            clock.wait_for(stamp);
             let call = Instant::now();
             let returned = deliver(&mut instance, &message, &mut points).map_err(|e| {
                 anyhow!(
@@ -266,6 +300,7 @@ fn write_run_toml(
     job: &Job,
     config: &sim::SimConfig,
     plugin: &plugin_api::LoadedPlugin,
+    requirements: &plugin_api::Requirements,
 ) -> anyhow::Result<()> {
     let mut doc = toml::Table::new();
     let mut put = |k: &str, v: toml::Value| {
@@ -295,8 +330,7 @@ fn write_run_toml(
     p.insert(
         "sensors".into(),
         toml::Value::Array(
-            plugin
-                .requirements
+            requirements
                 .sensors
                 .iter()
                 .map(|k| toml::Value::from(k.name()))

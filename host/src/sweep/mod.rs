@@ -59,6 +59,11 @@ pub struct Cell {
     pub label: String,
     pub plugin: PathBuf,
     pub params_toml: String,
+    #[serde(default)]
+    pub pace: crate::runner::Pace,
+    /// The sweep file's folder: what the plugin's relative paths are relative to.
+    #[serde(default)]
+    pub base_dir: Option<PathBuf>,
     pub seed: u64,
     /// The value of every axis (as TOML), in axis order.
     pub point: Vec<(String, String)>,
@@ -271,10 +276,16 @@ impl Sweep {
                     for &seed in &seeds {
                         // Everything that decides what the run does; not the label, which
                         // only names it.
+                        // A paced run is another run; the free pace keeps the keys of
+                        // sweeps made before pacing existed.
+                        let pace = match plugin.pace {
+                            crate::runner::Pace::Free => String::new(),
+                            crate::runner::Pace::Realtime => "pace realtime\n".to_owned(),
+                        };
                         let resolved = format!(
                             "vinebench-sweep-cell 1\nscenario {scenario:?}\nseed {seed}\n\
                              plugin {plugin_hash}\nparams {:?}\nworld {world}\n\
-                             max_time {max_time}\nalign {:?}\ntimeout {:?}\nmemory {}\n",
+                             max_time {max_time}\nalign {:?}\ntimeout {:?}\nmemory {}\n{pace}",
                             plugin.params_toml, cfg.align, cfg.timeout_s, cfg.memory_limit_mb
                         );
                         cells.push(Cell {
@@ -283,6 +294,8 @@ impl Sweep {
                             label: plugin.label.clone(),
                             plugin: plugin.library.clone(),
                             params_toml: plugin.params_toml.clone(),
+                            pace: plugin.pace,
+                            base_dir: Some(plugin.base_dir.clone()),
                             seed,
                             point: axes
                                 .iter()
@@ -377,6 +390,8 @@ impl Sweep {
                             label: c.label.clone(),
                             plugin: c.plugin.clone(),
                             params_toml: c.params_toml.clone(),
+                            pace: c.pace,
+                            base_dir: c.base_dir.clone(),
                         })
                         .collect(),
                     jobs,

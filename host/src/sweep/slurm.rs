@@ -212,6 +212,8 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
             label: cell.label.clone(),
             plugin: cell.plugin.clone(),
             params_toml: cell.params_toml.clone(),
+            pace: cell.pace,
+            base_dir: cell.base_dir.clone(),
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(tasks.timeout_s),

@@ -14,12 +14,12 @@
 //! `scripts/setup.sh` with Debian's `/usr/bin/python3`, so its packages match the
 //! libpython3.11 this library links), put first on `sys.path`.
 //!
-//! Unsafe code (denied in the rest of the workspace) is confined to two places, each
-//! explained where it is: the abi_stable export of the root module, and the `dlopen` that
-//! makes libpython's symbols global before the interpreter starts.
+//! The interpreter is started by `vinebench-python-embed` (shared with the Python plugin
+//! bridge). Unsafe code (denied in the rest of the workspace) is the abi_stable export of
+//! the root module, explained where it is.
 
 use std::collections::BTreeMap;
-use std::ffi::{CStr, CString};
+use std::ffi::CString;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -27,7 +27,7 @@ use std::sync::{Mutex, OnceLock};
 
 use abi_stable::std_types::{RResult, RSlice, RString, RVec};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyList};
+use pyo3::types::PyBytes;
 
 /// The Python half, compiled in.
 const BRIDGE_PY: &str = include_str!("bridge.py");
@@ -143,50 +143,11 @@ fn graphs() -> std::sync::MutexGuard<'static, BTreeMap<u64, Py<PyAny>>> {
 fn graph_class() -> Result<&'static Py<PyAny>, String> {
     GRAPH_CLASS
         .get_or_init(|| {
-            make_libpython_global()?;
-            Python::initialize();
+            python_embed::start().map_err(|e| format!("GTSAM bridge: {e}"))?;
             Python::attach(load_bridge)
         })
         .as_ref()
         .map_err(Clone::clone)
-}
-
-/// GTSAM's extension module, like every extension in a wheel, is not linked against
-/// libpython: it expects the interpreter's symbols to be global already, as they are in the
-/// `python3` executable. Here libpython came in as this library's dependency, whose symbols
-/// `dlopen` keeps local; reopening it with `RTLD_NOLOAD | RTLD_GLOBAL` (found through the
-/// address of one of its functions) makes them global without loading anything new.
-fn make_libpython_global() -> Result<(), String> {
-    let symbol = pyo3::ffi::Py_IsInitialized as *const libc::c_void;
-    let mut info = std::mem::MaybeUninit::<libc::Dl_info>::zeroed();
-    // SAFETY: dladdr only reads the address and fills `info`, which is valid for writes;
-    // `dli_fname` points into the loader's own data, valid while libpython stays loaded
-    // (it is never unloaded: this library depends on it).
-    #[allow(unsafe_code)]
-    let path = unsafe {
-        if libc::dladdr(symbol, info.as_mut_ptr()) == 0
-            || info.assume_init_ref().dli_fname.is_null()
-        {
-            return Err("GTSAM bridge: cannot find which library holds libpython".into());
-        }
-        CStr::from_ptr(info.assume_init_ref().dli_fname).to_owned()
-    };
-    // SAFETY: RTLD_NOLOAD only changes the flags of a library already loaded (no
-    // initialisers run); the handle is deliberately kept, so it stays global.
-    #[allow(unsafe_code)]
-    let handle = unsafe {
-        libc::dlopen(
-            path.as_ptr(),
-            libc::RTLD_LAZY | libc::RTLD_NOLOAD | libc::RTLD_GLOBAL,
-        )
-    };
-    if handle.is_null() {
-        return Err(format!(
-            "GTSAM bridge: cannot make {} global",
-            path.to_string_lossy()
-        ));
-    }
-    Ok(())
 }
 
 fn venv() -> PathBuf {
@@ -201,27 +162,9 @@ const SETUP_HINT: &str = "run `bash scripts/setup.sh` (or point VINEBENCH_GTSAM_
 /// `bridge.py`; its `Graph` class.
 fn load_bridge(py: Python<'_>) -> Result<Py<PyAny>, String> {
     let err = |e: PyErr| python_error(py, &e);
-    let sys = py.import("sys").map_err(err)?;
-    let (major, minor): (u32, u32) = sys
-        .getattr("version_info")
-        .and_then(|v| Ok((v.get_item(0)?.extract()?, v.get_item(1)?.extract()?)))
-        .map_err(err)?;
     let venv = venv();
-    let site = venv.join(format!("lib/python{major}.{minor}/site-packages"));
-    if !site.is_dir() {
-        return Err(format!(
-            "GTSAM backend: no Python {major}.{minor} environment at {}: {SETUP_HINT}",
-            venv.display()
-        ));
-    }
-    let path = sys.getattr("path").map_err(err)?;
-    let path = path.cast::<PyList>().map_err(|e| e.to_string())?;
-    path.insert(0, site.to_string_lossy().as_ref())
-        .map_err(err)?;
-    if !sys.hasattr("argv").map_err(err)? {
-        sys.setattr("argv", PyList::new(py, [""]).map_err(err)?)
-            .map_err(err)?;
-    }
+    python_embed::use_venv(py, &venv, SETUP_HINT).map_err(|e| format!("GTSAM backend: {e}"))?;
+    let site = python_embed::site_packages(py, &venv)?;
     if let Err(e) = py.import("gtsam") {
         return Err(format!(
             "GTSAM backend: cannot import the gtsam Python package from {} ({}): {SETUP_HINT}",
@@ -242,11 +185,5 @@ fn load_bridge(py: Python<'_>) -> Result<Py<PyAny>, String> {
 
 /// A Python exception as `Type: message`.
 fn python_error(py: Python<'_>, e: &PyErr) -> String {
-    let kind = e
-        .get_type(py)
-        .name()
-        .map(|n| n.to_string())
-        .unwrap_or_else(|_| "Exception".into());
-    let message = e.value(py).to_string();
-    format!("{kind}: {}", message.trim())
+    python_embed::error_line(py, e)
 }

@@ -1,0 +1,73 @@
+"""The contract of a SLAM system hosted by vinebench's Python bridge, as a runnable example.
+
+Name the class in a bench file (see plugins/python-bridge/src/lib.rs for every key):
+
+    [[plugins]]
+    name = "python-bridge"
+    label = "my-odometry"
+    [plugins.params]
+    module = "vinebench_plugin"                # this file
+    class = "WheelOdometry"
+    path = "../plugins/python-bridge/python"   # relative to the bench file
+    venv = "../target/my-venv"                 # a venv of /usr/bin/python3 with numpy
+
+Lifecycle (the same as a Rust plugin's `SlamSystem`):
+
+1. `requirements(params)` (static): the sensor kinds to stream, of "imu",
+   "wheel_odometry", "lidar", "scan2d", "rgbd", as a list or as
+   {"sensors": [...], "mode": "online" | "offline"}.
+2. `__init__(params, rig)`: `params` is the bench file's table without the bridge's keys
+   (module, class, path, venv); `rig` the sensor rig as a dict ({"sensors": [{name, kind,
+   rate_hz, base_from_sensor_xyz, base_from_sensor_xyzw, intrinsics, noise}, ...]}).
+3. One method per sensor kind, called in time order: `on_imu`, `on_wheel_odometry`,
+   `on_point_cloud`, `on_laser_scan`, `on_rgbd` (absent methods are not called). Each
+   returns None or `(stamp_ns, map_from_base)` with a 4x4 (or 3x4) transform: the host
+   records these as the online trajectory. The messages' arrays are read-only numpy views
+   of the host's buffers, valid during the call only: keep copies, not the arrays (a class
+   that keeps one fails its run with a line saying so).
+4. `finish()`: a dict with `trajectory` (a list of `(stamp_ns, map_from_base)`), optional
+   `events` (dicts with `stamp_ns`, `kind` — "loop_closure_accepted",
+   "loop_closure_rejected", "tracking_lost" or "tracking_recovered" — `detail`, and for a
+   loop closure `loop_stamps_ns` = [current, matched]) and optional `map` ((N, 3) points).
+
+Times are integer nanoseconds, lengths metres, the base frame x forward, z up. An exception
+fails the run with its last line; print() goes to the run's log.
+"""
+
+import math
+
+import numpy as np
+
+
+class WheelOdometry:
+    """Dead reckoning from the wheel speeds (midpoint rule), the smallest useful system."""
+
+    @staticmethod
+    def requirements(params):
+        return ["wheel_odometry"]
+
+    def __init__(self, params, rig):
+        self.state = None  # (stamp_ns, x, y, yaw)
+        self.trajectory = []
+
+    def on_wheel_odometry(self, odom):
+        if self.state is None:
+            self.state = (odom.stamp_ns, 0.0, 0.0, 0.0)
+        else:
+            last, x, y, yaw = self.state
+            dt = (odom.stamp_ns - last) * 1e-9
+            dyaw = odom.angular * dt
+            mid = yaw + 0.5 * dyaw
+            x += odom.linear * dt * math.cos(mid)
+            y += odom.linear * dt * math.sin(mid)
+            self.state = (odom.stamp_ns, x, y, yaw + dyaw)
+        stamp, x, y, yaw = self.state
+        pose = np.eye(4)
+        c, s = math.cos(yaw), math.sin(yaw)
+        pose[:2, :2] = [[c, -s], [s, c]]
+        pose[:2, 3] = [x, y]
+        self.trajectory.append((stamp, pose))
+        return stamp, pose
+
+    def finish(self):
+        return {"trajectory": self.trajectory}

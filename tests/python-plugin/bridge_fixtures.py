@@ -1,0 +1,100 @@
+"""Python plugins for the bridge's end-to-end tests (host/tests/e2e/python.rs) and its
+per-message overhead benchmark (host/benches/bridges.rs)."""
+
+import ctypes
+
+import numpy as np
+
+from vinebench_plugin import WheelOdometry
+
+
+class Odometry(WheelOdometry):
+    """The contract's example, failing on purpose when asked: `fault` = "raise" (a Python
+    exception), "segfault" (a crash in native code) or "keep" (keeps a message's array past
+    the call), after `after` messages; also reports a map and an event."""
+
+    @staticmethod
+    def requirements(params):
+        return ["wheel_odometry", "lidar"] if params.get("lidar") else ["wheel_odometry"]
+
+    def __init__(self, params, rig):
+        super().__init__(params, rig)
+        self.sweeps = []
+        self.fault = params.get("fault", "none")
+        self.after = params.get("after", 20)
+        self.seen = 0
+        self.kept = None
+        self.rig_sensors = sorted(s["kind"] for s in rig["sensors"])
+
+    def on_wheel_odometry(self, odom):
+        self.seen += 1
+        if self.seen > self.after:
+            if self.fault == "raise":
+                raise ValueError(f"deliberate error at {odom.stamp_ns} ns")
+            if self.fault == "segfault":
+                ctypes.string_at(0)
+        return super().on_wheel_odometry(odom)
+
+    def on_point_cloud(self, cloud):
+        """Records what a sweep looks like from Python (count, rings, the last point's time,
+        the farthest range); returns nothing."""
+        p = cloud.points
+        assert not p.flags.writeable, "the host's buffer must be read-only"
+        rng = np.linalg.norm(cloud.xyz(), axis=1)
+        self.sweeps.append(f"{len(p)},{int(p['ring'].max()) + 1},{float(p['time_s'].max()):.4f},{rng.max():.2f}")
+
+    def finish(self):
+        out = super().finish()
+        out["map"] = np.array([p[1][:3, 3] for p in out["trajectory"][:3]])
+        detail = f"python odometry: {len(out['trajectory'])} poses; rig {','.join(self.rig_sensors)}"
+        if self.sweeps:
+            detail += f"; sweeps {len(self.sweeps)}: " + " ".join(self.sweeps[:3])
+        out["events"] = [{"stamp_ns": out["trajectory"][-1][0], "kind": "tracking_recovered", "detail": detail}]
+        return out
+
+
+class Keeper:
+    """Keeps the first lidar sweep's points array: the bridge must refuse."""
+
+    @staticmethod
+    def requirements(params):
+        return {"sensors": ["lidar"], "mode": "online"}
+
+    def __init__(self, params, rig):
+        self.kept = None
+
+    def on_point_cloud(self, cloud):
+        self.kept = cloud.points
+        return None
+
+    def finish(self):
+        return {"trajectory": []}
+
+
+class Noop:
+    """Takes every message and does nothing: the bridge's own cost per message."""
+
+    @staticmethod
+    def requirements(params):
+        return ["imu", "wheel_odometry", "lidar", "scan2d", "rgbd"]
+
+    def __init__(self, params, rig):
+        pass
+
+    def on_imu(self, m):
+        return None
+
+    def on_wheel_odometry(self, m):
+        return None
+
+    def on_point_cloud(self, m):
+        return None
+
+    def on_laser_scan(self, m):
+        return None
+
+    def on_rgbd(self, m):
+        return None
+
+    def finish(self):
+        return {"trajectory": []}
