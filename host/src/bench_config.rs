@@ -168,8 +168,11 @@ impl BenchConfig {
     /// TOML), in file order. `file` names the culprit in the error.
     pub fn resolve_plugins(&self, file: &Path) -> anyhow::Result<Vec<ResolvedPlugin>> {
         let dirs = crate::plugins::search_path(&self.plugin_dirs);
-        let base_dir = std::path::absolute(file.parent().unwrap_or(Path::new(".")))
-            .with_context(|| file.display().to_string())?;
+        let base_dir = match file.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => std::path::absolute(dir),
+            _ => std::env::current_dir(),
+        }
+        .with_context(|| file.display().to_string())?;
         self.plugins
             .iter()
             .map(|entry| {

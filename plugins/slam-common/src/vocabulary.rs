@@ -897,6 +897,37 @@ impl Vocabulary {
         w.write_all(&out)
     }
 
+    /// Writes the vocabulary in DBoW2's text format, the one ORB-SLAM2/3 read their
+    /// `ORBvoc.txt` from (DBoW2 `TemplatedVocabulary::loadFromTextFile`, Gálvez-López and
+    /// Tardós, "Bags of Binary Words for Fast Place Recognition in Image Sequences", IEEE
+    /// T-RO 28(5), 2012): a line `k L scoring weighting` (here L1-norm scoring, 0, and
+    /// TF-IDF weighting, 0, as ORB-SLAM's), then one line per node but the root,
+    /// `parent is_leaf d0 … d31 weight`, with the descriptor's 32 bytes in decimal and the
+    /// word's idf weight (0 for inner nodes). The reader numbers nodes in file order from 1
+    /// (the root is 0), so nodes are written breadth first, each parent before its
+    /// children, under those numbers.
+    pub fn write_dbow2_text(&self, w: &mut impl Write) -> io::Result<()> {
+        let mut out = BufWriter::new(w);
+        writeln!(out, "{} {} 0 0", self.k, self.levels)?;
+        let mut number = vec![0u32; self.node_count()];
+        let mut queue = std::collections::VecDeque::from([0 as NodeId]);
+        let mut next = 1u32;
+        while let Some(node) = queue.pop_front() {
+            for child in self.children(node) {
+                number[child as usize] = next;
+                next += 1;
+                let word = self.node_word(child);
+                write!(out, "{} {}", number[node as usize], u8::from(word.is_some()))?;
+                for byte in self.node_descriptor(child) {
+                    write!(out, " {byte}")?;
+                }
+                writeln!(out, " {}", word.map_or(0.0, |w| self.word_weight(w)))?;
+                queue.push_back(child);
+            }
+        }
+        out.flush()
+    }
+
     /// Reads a vocabulary written by [`Vocabulary::write_to`], checking it (module
     /// documentation). Reads exactly the vocabulary's bytes from `r`.
     pub fn read_from(r: &mut impl Read) -> Result<Self, VocabularyError> {

@@ -5,6 +5,11 @@
 //! runs the whole recipe on a world different from the benchmark's.
 //!
 //! Usage: `orbslam2-vocabulary --out FILE [--k 10] [--levels 6] [--seed 0] [--every 10] DIR...`
+//!
+//! `orbslam2-vocabulary --export-dbow2-text VOCABULARY.dbow OUT.txt` writes a trained
+//! vocabulary in DBoW2's text format, the `ORBvoc.txt` format the real ORB-SLAM2/3 load
+//! (`Vocabulary::write_dbow2_text`); `scripts/setup.sh` makes the `orbslam3` adapter's
+//! vocabulary this way.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -73,7 +78,34 @@ fn read_rgb(path: &Path) -> Result<(Vec<u8>, usize, usize), String> {
     Ok((buf, info.width as usize, info.height as usize))
 }
 
+/// `--export-dbow2-text IN OUT`.
+fn export(input: &Path, output: &Path) -> Result<(), String> {
+    let vocabulary = Vocabulary::load(input).map_err(|e| format!("{}: {e}", input.display()))?;
+    let tmp = output.with_extension("txt.partial");
+    let mut file =
+        std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    vocabulary
+        .write_dbow2_text(&mut file)
+        .map_err(|e| format!("{}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, output).map_err(|e| format!("{}: {e}", output.display()))?;
+    println!(
+        "{}: {} nodes, {} words -> {}",
+        input.display(),
+        vocabulary.node_count(),
+        vocabulary.word_count(),
+        output.display()
+    );
+    Ok(())
+}
+
 fn run() -> Result<(), String> {
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    if argv.first().map(String::as_str) == Some("--export-dbow2-text") {
+        let [_, input, output] = argv.as_slice() else {
+            return Err("usage: orbslam2-vocabulary --export-dbow2-text VOCABULARY.dbow OUT.txt".into());
+        };
+        return export(Path::new(input), Path::new(output));
+    }
     let args = parse()?;
     let mut extractor =
         OrbExtractor::new(OrbConfig::default()).map_err(|e| format!("ORB extractor: {e}"))?;
