@@ -22,6 +22,9 @@ need_pkg python3-dev
 need_pkg python3-venv
 # Debian's Chromium for the report's browser test (tests/browser), run headless.
 need_pkg chromium
+# The OpenGL/X11 runtime the real ORB-SLAM3's wheel (pyorbslam3, the `orbslam3` adapter of
+# the Python bridge) links, though it opens no window.
+for pkg in libgl1 libegl1 libopengl0 libsm6 libice6 libx11-6 libxext6; do need_pkg "$pkg"; done
 if ((${#apt_missing[@]})); then
   echo "setup: installing ${apt_missing[*]}" >&2
   export DEBIAN_FRONTEND=noninteractive
@@ -65,4 +68,15 @@ if [ ! -x "$gtsam_venv/bin/python" ]; then
   /usr/bin/python3 -m venv "$gtsam_venv"
 fi
 ensure_requirements tests/gtsam/requirements.txt "$gtsam_venv"
+# The Python bridge's environments (plugins/python-bridge), each a venv of /usr/bin/python3
+# for the libpython3.11 the bridge links: numpy alone for the bridge's own tests and
+# benchmark, and one per real system it hosts (plugins/python-bridge/adapters/*.txt).
+python_venv() {
+  local venv="$PWD/target/$1"
+  [ -x "$venv/bin/python" ] || /usr/bin/python3 -m venv "$venv"
+  ensure_requirements "$2" "$venv"
+}
+python_venv python-bridge-venv tests/python-plugin/requirements.txt
+python_venv kiss-icp-venv plugins/python-bridge/adapters/kiss_icp.txt
+python_venv orbslam3-venv plugins/python-bridge/adapters/orbslam3.txt
 export PATH="$vinebench_venv/bin:$PATH"

@@ -173,9 +173,8 @@ impl LoadedPlugin {
             return Ok(self.requirements.clone());
         };
         match ask(config_toml.into()) {
-            RResult::ROk(text) => toml::from_str(text.as_str()).map_err(|e| {
-                PluginError(format!("unreadable requirements: {}", e.message()))
-            }),
+            RResult::ROk(text) => toml::from_str(text.as_str())
+                .map_err(|e| PluginError(format!("unreadable requirements: {}", e.message()))),
             RResult::RErr(e) => Err(PluginError(format!(
                 "requirements failed: {}",
                 e.into_string()

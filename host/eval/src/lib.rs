@@ -49,7 +49,9 @@ pub use error::{EvalError, Malformed};
 pub use io::kitti::{parse_kitti, read_kitti, write_kitti};
 pub use io::tum::{parse_tum, read_tum, write_tum};
 pub use io::{Format, read_trajectory};
-pub use loops::{LoopCounts, LoopCriteria, LoopJudgement, judge_loop};
+pub use loops::{
+    CorrectionJudgement, LoopCounts, LoopCriteria, LoopJudgement, judge_correction, judge_loop,
+};
 pub use relation::PoseRelation;
 pub use rpe::{DeltaUnit, RpeOptions, RpeResult, evaluate_rpe, rpe_errors, rpe_pairs};
 pub use stats::Statistics;

@@ -30,11 +30,7 @@ pub fn run(args: &WorkerArgs) -> anyhow::Result<()> {
         let requirements = loaded
             .requirements_for(&args.params)
             .map_err(|e| anyhow::anyhow!("plugin {}: {e}", loaded.name))?;
-        let names: Vec<&str> = requirements
-            .sensors
-            .iter()
-            .map(|k| k.name())
-            .collect();
+        let names: Vec<&str> = requirements.sensors.iter().map(|k| k.name()).collect();
         println!("{}", names.join(","));
         return Ok(());
     }

@@ -72,8 +72,10 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
     let final_ = eval::evaluate_ape(&gt, &estimate, &options)
         .with_context(|| format!("evaluating {}", dir.join(files::ESTIMATE).display()))?;
     let online_path = dir.join(files::ONLINE);
-    let online_ape = if online_path.exists() {
-        Some(eval::evaluate_ape(&gt, &eval::read_tum(&online_path)?, &options)?.stats)
+    let online = if online_path.exists() {
+        let trajectory = eval::read_tum(&online_path)?;
+        let stats = eval::evaluate_ape(&gt, &trajectory, &options)?.stats;
+        Some((trajectory, stats))
     } else {
         None
     };
@@ -83,12 +85,20 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
             .with_context(|| events_path.display().to_string())?,
     )
     .with_context(|| events_path.display().to_string())?;
-    let (loops, judged) = super::loops::judge(events, &gt, &eval::LoopCriteria::default());
+    let (loops, judged) = super::loops::judge(
+        events,
+        &gt,
+        &eval::LoopCriteria::default(),
+        online.as_ref().map(|(trajectory, _)| super::loops::Online {
+            trajectory,
+            map_from_estimate: &final_.transform,
+        }),
+    );
     super::worker::write_json(&events_path, &judged)?;
     let metrics = Metrics {
         alignment: alignment_name(alignment).to_owned(),
         ape: final_.stats,
-        online_ape,
+        online_ape: online.map(|(_, stats)| stats),
         loops,
     };
     super::worker::write_json(&dir.join(files::METRICS), &metrics)?;

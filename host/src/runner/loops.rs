@@ -11,9 +11,13 @@
 //! error is reported with the verdict.
 //!
 //! Every accepted loop is judged from the two stamps its event carries
-//! (`Event::loop_stamps_ns`). An accepted loop without stamps (a plugin built before
-//! events carried them) or with stamps outside the ground truth is counted in `accepted`
-//! and in `unjudged`, never in `accepted_false`. Rejected loops are counted, not judged.
+//! (`Event::loop_stamps_ns`). An accepted loop without stamps (a system that only says its
+//! map changed, as ORB-SLAM3's bindings do, or a plugin built before events carried them)
+//! is judged by the correction it made to the online estimate (`eval::judge_correction`:
+//! false when the position error grew by more than 0.5 m across the event), when the run
+//! has online poses on both sides of it; otherwise, and for stamps outside the ground truth,
+//! it is counted in `accepted` and in `unjudged`, never in `accepted_false`. Rejected loops
+//! are counted, not judged.
 
 use eval::{LoopCounts, LoopCriteria, LoopJudgement, Trajectory};
 use plugin_api::{Event, EventKind};
@@ -38,19 +42,36 @@ pub struct JudgedEvent {
     pub relative_error_m: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub relative_error_deg: Option<f64>,
+    /// For a loop judged by its correction: the online estimate's position error just
+    /// before and just after it, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_before_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_after_m: Option<f64>,
 }
 
-/// Judges every accepted loop of `events` against `groundtruth` by `criteria`; returns the
-/// counts and the events with their judgements, in the plugin's order.
+/// The online estimate and the alignment that moves it into ground truth's frame, for
+/// loops judged by their correction.
+#[derive(Debug, Clone, Copy)]
+pub struct Online<'a> {
+    pub trajectory: &'a Trajectory,
+    pub map_from_estimate: &'a eval::Sim3,
+}
+
+/// Judges every accepted loop of `events` against `groundtruth` by `criteria` (a loop
+/// without stamps by its correction of `online`, if given); returns the counts and the
+/// events with their judgements, in the plugin's order.
 pub fn judge(
     events: Vec<Event>,
     groundtruth: &Trajectory,
     criteria: &LoopCriteria,
+    online: Option<Online<'_>>,
 ) -> (LoopCounts, Vec<JudgedEvent>) {
     let mut counts = LoopCounts::default();
     let judged = events
         .into_iter()
         .map(|event| {
+            let mut correction = None;
             let judgement: Option<LoopJudgement> = match event.kind {
                 EventKind::LoopClosureAccepted => {
                     let judgement = event.loop_stamps_ns.and_then(|stamps| {
@@ -61,7 +82,22 @@ pub fn judge(
                             criteria,
                         )
                     });
-                    counts.add_accepted(judgement.as_ref());
+                    if event.loop_stamps_ns.is_none() {
+                        correction = online.and_then(|o| {
+                            eval::judge_correction(
+                                groundtruth,
+                                o.trajectory,
+                                o.map_from_estimate,
+                                event.stamp_ns as f64 * 1e-9,
+                                criteria,
+                            )
+                        });
+                    }
+                    counts.add_accepted_verdict(
+                        judgement
+                            .map(|j| j.true_loop)
+                            .or(correction.map(|c| c.true_loop)),
+                    );
                     judgement
                 }
                 EventKind::LoopClosureRejected => {
@@ -72,7 +108,11 @@ pub fn judge(
             };
             JudgedEvent {
                 event,
-                true_loop: judgement.map(|j| j.true_loop),
+                true_loop: judgement
+                    .map(|j| j.true_loop)
+                    .or(correction.map(|c| c.true_loop)),
+                error_before_m: correction.map(|c| c.error_before_m),
+                error_after_m: correction.map(|c| c.error_after_m),
                 gt_distance_m: judgement.map(|j| j.distance_m),
                 gt_heading_deg: judgement.map(|j| j.heading_rad.to_degrees()),
                 relative_error_m: judgement.and_then(|j| j.relative_error).map(|e| e.0),
@@ -138,7 +178,12 @@ mod tests {
             Event::new(27 * S, EventKind::LoopClosureAccepted, "old plugin"),
             Event::new(28 * S, EventKind::TrackingLost, "dark"),
         ];
-        let (counts, judged) = judge(events.clone(), &groundtruth(), &LoopCriteria::same_view());
+        let (counts, judged) = judge(
+            events.clone(),
+            &groundtruth(),
+            &LoopCriteria::same_view(),
+            None,
+        );
         assert_eq!(
             counts,
             LoopCounts {
@@ -172,7 +217,7 @@ mod tests {
             events
         );
         // The host's default: the same place at any heading, so the reversed loop is true.
-        let (counts, judged) = judge(events, &groundtruth(), &LoopCriteria::default());
+        let (counts, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None);
         assert_eq!(
             counts,
             LoopCounts {
@@ -198,7 +243,7 @@ mod tests {
             accepted(25 * S, 3 * S).with_relative_pose(&truth),
             accepted(25 * S, 5 * S).with_relative_pose(&Isometry3::translation(1.0, 0.3, 0.0)),
         ];
-        let (counts, judged) = judge(events, &gt, &LoopCriteria::default());
+        let (counts, judged) = judge(events, &gt, &LoopCriteria::default(), None);
         assert_eq!(
             (counts.accepted, counts.accepted_false),
             (2, 1),
@@ -219,7 +264,7 @@ mod tests {
             accepted(25 * S, 5 * S),
             Event::new(27 * S, EventKind::LoopClosureAccepted, "old plugin"),
         ];
-        let (_, judged) = judge(events, &groundtruth(), &LoopCriteria::default());
+        let (_, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None);
         let json = serde_json::to_value(&judged).expect("json");
         assert_eq!(json[0]["stamp_ns"], 25 * S);
         assert_eq!(json[0]["kind"], "loop_closure_accepted");

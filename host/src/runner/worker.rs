@@ -58,7 +58,8 @@ impl Pacer {
             return;
         }
         let (t0, first) = *self.start.get_or_insert((Instant::now(), stamp_ns));
-        let due = t0 + std::time::Duration::from_nanos(stamp_ns.saturating_sub(first).max(0) as u64);
+        let due =
+            t0 + std::time::Duration::from_nanos(stamp_ns.saturating_sub(first).max(0) as u64);
         let now = Instant::now();
         if due > now {
             std::thread::sleep(due - now);

@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 
 use crate::common::{deps_dir, json, quantile, relative_errors, text, vinebench};
 
-fn plugin_lib(crate_name: &str) -> PathBuf {
+pub(crate) fn plugin_lib(crate_name: &str) -> PathBuf {
     let path = deps_dir().join(format!(
         "{}{crate_name}{}",
         std::env::consts::DLL_PREFIX,
@@ -22,14 +22,14 @@ fn plugin_lib(crate_name: &str) -> PathBuf {
     path
 }
 
-fn workspace_root() -> PathBuf {
+pub(crate) fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .expect("workspace root")
         .to_owned()
 }
 
-fn run_bench(dir: &Path, name: &str, toml: &str) -> (Output, PathBuf) {
+pub(crate) fn run_bench(dir: &Path, name: &str, toml: &str) -> (Output, PathBuf) {
     let file = dir.join(format!("{name}.toml"));
     std::fs::write(&file, toml).expect("write bench file");
     let out = dir.join(format!("results-{name}"));

@@ -10,6 +10,7 @@ mod cli;
 mod dataset;
 mod lio_sam;
 mod orbslam2;
+mod python;
 mod report;
 mod results_mcap;
 mod rtabmap;

@@ -43,8 +43,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, Mode, PluginError, PointCloud, Pose, Requirements,
-    RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, export_plugin,
+    Event, EventKind, Imu, LaserScan, Mode, PluginError, PointCloud, Pose, Requirements, RgbdFrame,
+    Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, export_plugin,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
@@ -135,7 +135,10 @@ impl Spec {
 }
 
 /// Starts Python with the spec's environment; the bridge module and the class.
-fn prepare<'py>(py: Python<'py>, spec: &Spec) -> Result<(Bound<'py, PyAny>, Bound<'py, PyAny>), String> {
+fn prepare<'py>(
+    py: Python<'py>,
+    spec: &Spec,
+) -> Result<(Bound<'py, PyAny>, Bound<'py, PyAny>), String> {
     if let Some(venv) = &spec.venv {
         python_embed::use_venv(
             py,
@@ -224,14 +227,16 @@ impl Lent {
         if filled != 0 {
             return Err(PyErr::fetch(slf.py()));
         }
-        this.exports.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        this.exports
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(())
     }
 
     // SAFETY (the method): called by CPython once per view `__getbuffer__` filled.
     #[allow(unsafe_code)]
     unsafe fn __releasebuffer__(&self, _view: *mut pyo3::ffi::Py_buffer) {
-        self.exports.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+        self.exports
+            .fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
     }
 }
 
@@ -379,7 +384,14 @@ impl SlamSystem for PythonPlugin {
             (c.x, c.y, c.z, c.w)
         });
         self.call("imu", |py, _| {
-            (imu.stamp_ns, "imu", imu.accel_mps2, imu.gyro_rps, orientation).into_pyobject(py)
+            (
+                imu.stamp_ns,
+                "imu",
+                imu.accel_mps2,
+                imu.gyro_rps,
+                orientation,
+            )
+                .into_pyobject(py)
         })
     }
 
@@ -391,14 +403,24 @@ impl SlamSystem for PythonPlugin {
             .to_homogeneous();
         let rows: [f64; 12] = std::array::from_fn(|i| pose[(i / 4, i % 4)]);
         self.call("wheel_odometry", |py, _| {
-            (odom.stamp_ns, "wheel_odometry", odom.linear_mps, odom.angular_rps, rows)
+            (
+                odom.stamp_ns,
+                "wheel_odometry",
+                odom.linear_mps,
+                odom.angular_rps,
+                rows,
+            )
                 .into_pyobject(py)
         })
     }
 
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
         self.call("point_cloud", |py, views| {
-            (cloud.stamp_ns, cloud.sensor, views.lend(py, bytes_of(cloud.points))?)
+            (
+                cloud.stamp_ns,
+                cloud.sensor,
+                views.lend(py, bytes_of(cloud.points))?,
+            )
                 .into_pyobject(py)
         })
     }
@@ -435,7 +457,12 @@ impl SlamSystem for PythonPlugin {
                 f.height,
                 views.lend(py, f.rgb)?,
                 views.lend(py, bytes_of(f.depth_m))?,
-                (f.intrinsics[0], f.intrinsics[1], f.intrinsics[2], f.intrinsics[3]),
+                (
+                    f.intrinsics[0],
+                    f.intrinsics[1],
+                    f.intrinsics[2],
+                    f.intrinsics[3],
+                ),
             )
                 .into_pyobject(py)
         })

@@ -917,7 +917,12 @@ impl Vocabulary {
                 number[child as usize] = next;
                 next += 1;
                 let word = self.node_word(child);
-                write!(out, "{} {}", number[node as usize], u8::from(word.is_some()))?;
+                write!(
+                    out,
+                    "{} {}",
+                    number[node as usize],
+                    u8::from(word.is_some())
+                )?;
                 for byte in self.node_descriptor(child) {
                     write!(out, " {byte}")?;
                 }

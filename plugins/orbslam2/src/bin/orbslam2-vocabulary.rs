@@ -82,8 +82,7 @@ fn read_rgb(path: &Path) -> Result<(Vec<u8>, usize, usize), String> {
 fn export(input: &Path, output: &Path) -> Result<(), String> {
     let vocabulary = Vocabulary::load(input).map_err(|e| format!("{}: {e}", input.display()))?;
     let tmp = output.with_extension("txt.partial");
-    let mut file =
-        std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    let mut file = std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
     vocabulary
         .write_dbow2_text(&mut file)
         .map_err(|e| format!("{}: {e}", tmp.display()))?;
@@ -102,7 +101,9 @@ fn run() -> Result<(), String> {
     let argv: Vec<String> = std::env::args().skip(1).collect();
     if argv.first().map(String::as_str) == Some("--export-dbow2-text") {
         let [_, input, output] = argv.as_slice() else {
-            return Err("usage: orbslam2-vocabulary --export-dbow2-text VOCABULARY.dbow OUT.txt".into());
+            return Err(
+                "usage: orbslam2-vocabulary --export-dbow2-text VOCABULARY.dbow OUT.txt".into(),
+            );
         };
         return export(Path::new(input), Path::new(output));
     }
