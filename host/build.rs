@@ -12,37 +12,42 @@
 //! `tests/c-plugin/c_odometry.c` is a plugin written against the C ABI
 //! (`plugin-api/include/vinebench_plugin.h`); it is compiled here with the C compiler the
 //! `cc` crate finds, into `$OUT_DIR`, and its path handed to the tests as
-//! `VINEBENCH_C_ODOMETRY`.
+//! `VINEBENCH_C_ODOMETRY`; `tests/c-plugin/c_noop.c`, the no-op of the bridges' benchmark,
+//! as `VINEBENCH_C_NOOP`.
 
 use std::path::Path;
 
 fn main() {
     println!("cargo::rustc-link-arg-tests=-Wl,--allow-multiple-definition");
+    println!("cargo::rustc-link-arg-benches=-Wl,--allow-multiple-definition");
     println!("cargo::rerun-if-changed=build.rs");
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let source = root.join("tests/c-plugin/c_odometry.c");
     let include = root.join("plugin-api/include");
-    println!("cargo::rerun-if-changed={}", source.display());
     println!(
         "cargo::rerun-if-changed={}",
         include.join("vinebench_plugin.h").display()
     );
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
     let compiler = cc::Build::new().get_compiler();
-    // The plugin, and the same claiming ABI version 99 (each in a folder of its own, so that
-    // the good one's folder holds only it).
-    for (folder, define, variable) in [
-        ("c-plugin", None, "VINEBENCH_C_ODOMETRY"),
+    // The odometry plugin, the same claiming ABI version 99, and the no-op plugin of the
+    // bridges' benchmark, each in a folder of its own (so that the good one's folder holds
+    // only it).
+    for (stem, folder, define, variable) in [
+        ("c_odometry", "c-plugin", None, "VINEBENCH_C_ODOMETRY"),
         (
+            "c_odometry",
             "c-plugin-v99",
             Some("-DC_ODOMETRY_ABI_VERSION=99"),
             "VINEBENCH_C_ODOMETRY_V99",
         ),
+        ("c_noop", "c-noop", None, "VINEBENCH_C_NOOP"),
     ] {
+        let source = root.join(format!("tests/c-plugin/{stem}.c"));
+        println!("cargo::rerun-if-changed={}", source.display());
         let dir = Path::new(&out_dir).join(folder);
         std::fs::create_dir_all(&dir).expect("create the C plugin's folder");
         let out = dir.join(format!(
-            "{}c_odometry{}",
+            "{}{stem}{}",
             std::env::consts::DLL_PREFIX,
             std::env::consts::DLL_SUFFIX
         ));

@@ -10,8 +10,8 @@ from vinebench_plugin import WheelOdometry
 
 class Odometry(WheelOdometry):
     """The contract's example, failing on purpose when asked: `fault` = "raise" (a Python
-    exception), "segfault" (a crash in native code) or "keep" (keeps a message's array past
-    the call), after `after` messages; also reports a map and an event."""
+    exception) or "segfault" (a crash in native code), after `after` messages; with `lidar`
+    it also takes the lidar and describes the sweeps; reports a map and an event."""
 
     @staticmethod
     def requirements(params):
@@ -23,7 +23,6 @@ class Odometry(WheelOdometry):
         self.fault = params.get("fault", "none")
         self.after = params.get("after", 20)
         self.seen = 0
-        self.kept = None
         self.rig_sensors = sorted(s["kind"] for s in rig["sensors"])
 
     def on_wheel_odometry(self, odom):
@@ -65,6 +64,29 @@ class Keeper:
 
     def on_point_cloud(self, cloud):
         self.kept = cloud.points
+        return None
+
+    def finish(self):
+        return {"trajectory": []}
+
+
+class BufferKeeper:
+    """Keeps the object behind the first sweep's array (not the array) and asks it for a
+    view at the next sweep: the bridge must refuse (a BufferError), not hand out the freed
+    memory."""
+
+    @staticmethod
+    def requirements(params):
+        return ["lidar"]
+
+    def __init__(self, params, rig):
+        self.buffer = None
+
+    def on_point_cloud(self, cloud):
+        if self.buffer is None:
+            self.buffer = cloud.points.base.obj
+        else:
+            np.frombuffer(self.buffer, dtype=np.uint8)
         return None
 
     def finish(self):

@@ -83,7 +83,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             plugin: path,
             params_toml,
             pace: crate::runner::Pace::Free,
-            base_dir: None,
+            // The worker runs in its run folder: relative paths in the plugin's parameters
+            // are relative to where `vinebench run` was started.
+            base_dir: Some(std::env::current_dir()?),
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(args.timeout_s),

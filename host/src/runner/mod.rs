@@ -354,7 +354,7 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
             }
             *probed
                 .entry((r.plugin.as_path(), r.params_toml.as_str()))
-                .or_insert_with(|| probe_sensors(&r.plugin, &r.params_toml))
+                .or_insert_with(|| probe_sensors(r))
         })
         .collect();
     let scenario_len = |s: &str| {
@@ -399,17 +399,21 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
     shared
 }
 
-/// The sensors a plugin library asks for with these parameters, read in a child process
+/// The sensors a run's plugin library asks for with its parameters, read in a child process
 /// (`vinebench worker --sensors`) so that no plugin is ever loaded into the supervisor;
 /// `None` if that fails.
-fn probe_sensors(plugin: &Path, params_toml: &str) -> Option<sim::SensorSet> {
+fn probe_sensors(run: &PlannedRun) -> Option<sim::SensorSet> {
     let exe = std::env::current_exe().ok()?;
-    let mut child = std::process::Command::new(exe)
+    let mut command = std::process::Command::new(exe);
+    if let Some(dir) = &run.base_dir {
+        command.env("VINEBENCH_BENCH_DIR", dir);
+    }
+    let mut child = command
         .arg("worker")
         .arg("--sensors")
-        .arg(plugin)
+        .arg(&run.plugin)
         .arg("--params")
-        .arg(params_toml)
+        .arg(&run.params_toml)
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())

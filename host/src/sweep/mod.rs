@@ -277,7 +277,9 @@ impl Sweep {
                         // Everything that decides what the run does; not the label, which
                         // only names it.
                         // A paced run is another run; the free pace keeps the keys of
-                        // sweeps made before pacing existed.
+                        // sweeps made before pacing existed. Files a plugin reads by the
+                        // paths in its parameters (a Python bridge's module, a vocabulary)
+                        // are not hashed: edit one and delete its cells to run them again.
                         let pace = match plugin.pace {
                             crate::runner::Pace::Free => String::new(),
                             crate::runner::Pace::Realtime => "pace realtime\n".to_owned(),

@@ -72,6 +72,7 @@ fn a_python_plugin_runs_like_a_c_one_and_its_faults_cost_its_own_run() {
             "fault = \"segfault\"\nafter = 100",
         ),
         py("py-keep", "Keeper", ""),
+        py("py-keep-buffer", "BufferKeeper", ""),
         py("py-missing", "NoSuchClass", ""),
     ]
     .concat();
@@ -87,6 +88,10 @@ fn a_python_plugin_runs_like_a_c_one_and_its_faults_cost_its_own_run() {
         ),
         ("py-segfault", "segmentation fault"),
         ("py-keep", "kept an array of the message past the call"),
+        (
+            "py-keep-buffer",
+            "BufferError: a message's buffer was kept past its call",
+        ),
         (
             "py-missing",
             "AttributeError: module 'bridge_fixtures' has no class 'NoSuchClass'",
@@ -235,9 +240,12 @@ fn the_real_kiss_icp_and_orbslam3_run_through_the_bridge() {
         .filter(|l| !l.starts_with('#'))
         .count();
     assert_eq!(sweeps, 200);
-    for label in ["kiss-icp", "kiss-icp-vineyard"] {
-        assert!(rmse(label).is_finite() && rmse(label) > 0.0, "{label}");
-    }
+    // KISS-ICP (no IMU) slips along the identical rows here: the vineyard configuration
+    // stayed within 1.7 m over 30 s of this lane when measured, its defaults within 3 m
+    // (configs/peers.toml's whole routes: README). These bounds catch a run that lost the
+    // route altogether (a wrong frame or time convention in the adapter), not a tuning.
+    assert!(rmse("kiss-icp-vineyard") < 5.0, "{}", rmse("kiss-icp-vineyard"));
+    assert!(rmse("kiss-icp") < 10.0, "{}", rmse("kiss-icp"));
     // Paced to simulated time: the ORB-SLAM3 run took at least the route's 20 s.
     let timing = json(&out.join("s1/orbslam3/timing.json"));
     let wall = timing["wall_s"].as_f64().unwrap_or_default();

@@ -1,7 +1,8 @@
 """ORB-SLAM3 (Campos et al., "ORB-SLAM3: An Accurate Open-Source Library for Visual,
 Visual-Inertial and Multi-Map SLAM", IEEE T-RO 37(6), 2021) as a vinebench system, through
 the Python bridge: the real ORB-SLAM3 from `pyorbslam3` 0.1.1 (GPL-3.0, an optional
-dependency in its own venv, never linked into vinebench), in RGB-D mode.
+dependency in its own venv, never linked into vinebench), in RGB-D mode, or RGB-D-inertial
+with `inertial = true`.
 
 Parameters (all optional):
 - `vocabulary`: the DBoW2 text vocabulary (default `../target/orbslam3-vocabulary.txt`,
@@ -13,6 +14,9 @@ Parameters (all optional):
 - `features` (1000), `scale_factor` (1.2), `levels` (8), `ini_th_fast` (20),
   `min_th_fast` (7), `th_depth` (40, in baselines), `baseline_m` (0.07732): ORB-SLAM3's
   RGB-D example settings for the TUM sequences (`Examples/RGB-D/TUM1.yaml`).
+- `inertial` (false): RGB-D-inertial (`Sensor.IMU_RGBD`): every IMU sample between two
+  frames goes with the later frame; the IMU's noise densities and random walks, rate and
+  `IMU.T_b_c1` (imu_from_camera) come from the rig.
 
 The settings file is written from the first frame's size and intrinsics (depth in metres:
 `RGBD.DepthMapFactor` 1). The online pose of each frame is `pose_wc` when valid; the final
@@ -39,6 +43,7 @@ DEFAULTS = {
     "min_th_fast": 7,
     "th_depth": 40.0,
     "baseline_m": 0.07732,
+    "inertial": False,
 }
 
 
@@ -92,10 +97,27 @@ Viewer.ViewpointF: 500.0
 """
 
 
+def imu_yaml(imu, imu_from_camera):
+    noise = imu.get("noise", {})
+    rows = ", ".join(repr(float(v)) for v in imu_from_camera.ravel())
+    return f"""IMU.T_b_c1: !!opencv-matrix
+   rows: 4
+   cols: 4
+   dt: f
+   data: [{rows}]
+IMU.InsertKFsWhenLost: 0
+IMU.NoiseGyro: {float(noise.get('gyro_noise_density', 1e-4))!r}
+IMU.NoiseAcc: {float(noise.get('accel_noise_density', 1e-3))!r}
+IMU.GyroWalk: {float(noise.get('gyro_bias_random_walk', 1e-6))!r}
+IMU.AccWalk: {float(noise.get('accel_bias_random_walk', 1e-5))!r}
+IMU.Frequency: {float(imu['rate_hz'])!r}
+"""
+
+
 class OrbSlam3:
     @staticmethod
     def requirements(params):
-        return ["rgbd"]
+        return ["rgbd", "imu"] if params.get("inertial") else ["rgbd"]
 
     def __init__(self, params, rig):
         unknown = set(params) - set(DEFAULTS)
@@ -114,6 +136,10 @@ class OrbSlam3:
         self.fps = camera["rate_hz"]
         self.base_from_camera = isometry(camera["base_from_sensor_xyz"], camera["base_from_sensor_xyzw"])
         self.camera_from_base = np.linalg.inv(self.base_from_camera)
+        self.imu = next((s for s in rig["sensors"] if s["kind"] == "imu"), None)
+        if self.params["inertial"] and self.imu is None:
+            raise ValueError("inertial = true, but the rig has no IMU")
+        self.samples = []  # IMU rows [t, gx, gy, gz, ax, ay, az] since the last frame
         self.slam = None
         self.lost = False
         self.stamps = []
@@ -124,7 +150,15 @@ class OrbSlam3:
         path = os.path.join(self.folder, "settings.yaml")
         with open(path, "w") as f:
             f.write(settings_yaml(self.params, frame.width, frame.height, frame.intrinsics, self.fps))
-        self.slam = pyorbslam3.Slam(self.vocabulary, path, pyorbslam3.Sensor.RGBD)
+            if self.params["inertial"]:
+                base_from_imu = isometry(self.imu["base_from_sensor_xyz"], self.imu["base_from_sensor_xyzw"])
+                f.write(imu_yaml(self.imu, np.linalg.inv(base_from_imu) @ self.base_from_camera))
+        sensor = pyorbslam3.Sensor.IMU_RGBD if self.params["inertial"] else pyorbslam3.Sensor.RGBD
+        self.slam = pyorbslam3.Slam(self.vocabulary, path, sensor)
+
+    def on_imu(self, imu):
+        if self.params["inertial"]:
+            self.samples.append((imu.stamp_ns * 1e-9, *imu.gyro, *imu.accel))
 
     def base_pose(self, world_from_camera):
         return self.base_from_camera @ world_from_camera @ self.camera_from_base
@@ -133,7 +167,12 @@ class OrbSlam3:
         if self.slam is None:
             self.start(frame)
         # ORB-SLAM3 takes the images as they are (RGB order, Camera.RGB = 1; depth in metres).
-        result = self.slam.track_rgbd(frame.rgb, frame.depth, frame.stamp_ns * 1e-9)
+        if self.params["inertial"]:
+            imu = np.array(self.samples, dtype=np.float64).reshape(-1, 7)
+            self.samples = []
+            result = self.slam.track_rgbd(frame.rgb, frame.depth, frame.stamp_ns * 1e-9, imu=imu)
+        else:
+            result = self.slam.track_rgbd(frame.rgb, frame.depth, frame.stamp_ns * 1e-9)
         self.stamps.append(frame.stamp_ns)
         state = result.state
         lost = state in (pyorbslam3.TrackingState.LOST, pyorbslam3.TrackingState.RECENTLY_LOST)

@@ -31,7 +31,9 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
    loop closure `loop_stamps_ns` = [current, matched]) and optional `map` ((N, 3) points).
 
 Times are integer nanoseconds, lengths metres, the base frame x forward, z up. An exception
-fails the run with its last line; print() goes to the run's log.
+fails the run with its `Type: message` line; print() goes to the run's log. The bridge can
+tell when Python code keeps an array, not when a C extension keeps a raw pointer to one:
+an extension must copy what it keeps (ORB-SLAM3 does, into its frames' keypoints).
 """
 
 import math

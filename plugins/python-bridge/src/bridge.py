@@ -208,7 +208,11 @@ def finish(obj):
     unknown = set(out) - {"trajectory", "events", "map"}
     if unknown:
         raise ValueError(f"finish(): unknown keys {sorted(unknown)}")
-    trajectory = [_pose(p, "finish() trajectory") for p in out.get("trajectory", [])]
+    trajectory = []
+    for p in out.get("trajectory", []):
+        if p is None:
+            raise TypeError("finish(): a trajectory entry is None, not (stamp_ns, map_from_base)")
+        trajectory.append(_pose(p, "finish() trajectory"))
     events = []
     for e in out.get("events", []):
         kind = e["kind"]

@@ -35,8 +35,7 @@
 //! run only, as for any plugin.
 //!
 //! Unsafe code (denied in the rest of the workspace) is the buffer protocol of `Lent`, which
-//! shows the host's message buffers to numpy read-only, and the byte view of plain-data
-//! slices; each is explained where it is.
+//! shows the host's message buffers to numpy read-only, explained where it is.
 
 use std::ffi::CString;
 use std::path::{Path, PathBuf};
@@ -193,6 +192,9 @@ struct Lent {
     ptr: usize,
     len: usize,
     exports: std::sync::atomic::AtomicUsize,
+    /// Cleared when the loan ends: a plugin that kept this object itself (not an array)
+    /// gets a `BufferError` instead of the host's memory if it asks for a view later.
+    alive: std::sync::atomic::AtomicBool,
 }
 
 #[pymethods]
@@ -210,6 +212,11 @@ impl Lent {
             ));
         }
         let this = slf.get();
+        if !this.alive.load(std::sync::atomic::Ordering::Acquire) {
+            return Err(pyo3::exceptions::PyBufferError::new_err(
+                "a message's buffer was kept past its call (the host's buffers are lent for the call only)",
+            ));
+        }
         // SAFETY: PyBuffer_FillInfo fills `view` for `len` bytes at `ptr`, read-only (1), and
         // takes a new reference to the exporter (this object), as the protocol requires.
         // `ptr` points to the host's message, alive for the call this object is lent for
@@ -240,43 +247,56 @@ impl Lent {
     }
 }
 
-/// The bytes of a `#[repr(C)]` plain-data slice (f32, LidarPoint).
-fn bytes_of<T: Copy>(items: &[T]) -> &[u8] {
-    // SAFETY: `T` is plain data without padding that matters for reading (f32 or
-    // LidarPoint, whose padding bytes are never interpreted: the numpy dtype skips them);
-    // the byte slice covers exactly the items' memory and borrows it for as long.
-    #[allow(unsafe_code)]
-    unsafe {
-        std::slice::from_raw_parts(items.as_ptr().cast::<u8>(), size_of_val(items))
-    }
-}
+/// Plain `#[repr(C)]` data the host lends to Python: the element types of its messages.
+trait Lendable: Copy {}
+impl Lendable for u8 {}
+impl Lendable for f32 {}
+impl Lendable for plugin_api::LidarPoint {}
 
 /// The buffers lent for one call.
 struct Views<'py>(Vec<Bound<'py, Lent>>);
 
 impl<'py> Views<'py> {
-    /// Lends `bytes` for this call. The caller keeps `bytes` alive until [`Views::release`].
-    fn lend(&mut self, py: Python<'py>, bytes: &[u8]) -> PyResult<Bound<'py, Lent>> {
+    /// Lends the memory of `items` (plain `#[repr(C)]` data: u8, f32, LidarPoint) for this
+    /// call. The caller keeps `items` alive until [`Views::release`]. No `&[u8]` is made of
+    /// it here (LidarPoint has padding bytes, which Rust may not read as bytes): Python
+    /// reads the memory through the buffer, and numpy's dtype skips the padding.
+    fn lend<T: Lendable>(&mut self, py: Python<'py>, items: &[T]) -> PyResult<Bound<'py, Lent>> {
         let lent = Bound::new(
             py,
             Lent {
-                ptr: bytes.as_ptr() as usize,
-                len: bytes.len(),
+                ptr: items.as_ptr() as usize,
+                len: size_of_val(items),
                 exports: 0.into(),
+                alive: true.into(),
             },
         )?;
         self.0.push(lent.clone());
         Ok(lent)
     }
 
-    /// Ends the loan: an error if the plugin still holds an array over a buffer (it would
-    /// read freed memory later; the run fails now instead).
-    fn release(self, method: &str) -> Result<(), String> {
-        let kept = self
-            .0
+    /// Whether any buffer still has a view (an array the plugin kept).
+    fn exported(&self) -> bool {
+        self.0
             .iter()
-            .any(|l| l.get().exports.load(std::sync::atomic::Ordering::Relaxed) > 0);
-        if kept {
+            .any(|l| l.get().exports.load(std::sync::atomic::Ordering::Relaxed) > 0)
+    }
+
+    /// Ends the loan: no buffer gives a view any more, and an error if the plugin still
+    /// holds an array over one (it would read freed memory later; the run fails now
+    /// instead). Arrays held only by reference cycles are collected first.
+    fn release(self, py: Python<'py>, method: &str) -> Result<(), String> {
+        for lent in &self.0 {
+            lent.get()
+                .alive
+                .store(false, std::sync::atomic::Ordering::Release);
+        }
+        if self.exported() {
+            if let Ok(gc) = py.import("gc") {
+                let _ = gc.call_method0("collect");
+            }
+        }
+        if self.exported() {
             return Err(format!(
                 "{method}: kept an array of the message past the call (the host's buffers are lent for the call only: keep a copy, e.g. np.array(frame.rgb))"
             ));
@@ -324,7 +344,7 @@ impl PythonPlugin {
                     .call_method1(method, PyTuple::new(py, all)?)?;
                 out.extract::<Option<(i64, [f64; 12])>>()
             })();
-            let released = views.release(method);
+            let released = views.release(py, method);
             let value = result.map_err(|e| fail(python_embed::error_line(py, &e)))?;
             released.map_err(fail)?;
             pose_from(value).map_err(|e| fail(format!("{method}: {e}")))
@@ -416,12 +436,7 @@ impl SlamSystem for PythonPlugin {
 
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
         self.call("point_cloud", |py, views| {
-            (
-                cloud.stamp_ns,
-                cloud.sensor,
-                views.lend(py, bytes_of(cloud.points))?,
-            )
-                .into_pyobject(py)
+            (cloud.stamp_ns, cloud.sensor, views.lend(py, cloud.points)?).into_pyobject(py)
         })
     }
 
@@ -432,8 +447,8 @@ impl SlamSystem for PythonPlugin {
                 s.sensor,
                 (s.angle_min_rad, s.angle_increment_rad, s.time_increment_s),
                 (s.range_min_m, s.range_max_m),
-                views.lend(py, bytes_of(s.ranges_m))?,
-                views.lend(py, bytes_of(s.intensities))?,
+                views.lend(py, s.ranges_m)?,
+                views.lend(py, s.intensities)?,
             )
                 .into_pyobject(py)
         })
@@ -456,7 +471,7 @@ impl SlamSystem for PythonPlugin {
                 f.width,
                 f.height,
                 views.lend(py, f.rgb)?,
-                views.lend(py, bytes_of(f.depth_m))?,
+                views.lend(py, f.depth_m)?,
                 (
                     f.intrinsics[0],
                     f.intrinsics[1],
@@ -486,7 +501,9 @@ impl SlamSystem for PythonPlugin {
         .map_err(|e| Python::attach(|py| fail(python_embed::error_line(py, &e))))?;
         let trajectory = trajectory
             .into_iter()
-            .map(|p| pose_from(p).map(|p| p.expect("finish() poses are never None")))
+            .map(|p| {
+                pose_from(p).and_then(|p| p.ok_or_else(|| "a trajectory entry is None".to_owned()))
+            })
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| fail(format!("finish: {e}")))?;
         let events = events
