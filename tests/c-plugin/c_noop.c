@@ -49,7 +49,7 @@ static const vb_plugin table = {
     .struct_size = sizeof(vb_plugin),
     .name = "c-noop",
     .version = "0.1.0",
-    .requirements_toml = "sensors = [\"imu\", \"wheel_odometry\", \"lidar\", \"scan2d\", \"rgbd\"]\n",
+    .requirements_toml = "sensors = [\"imu\", \"wheel_odometry\", \"lidar\", \"scan2d\", \"rgbd\"]\nmode = \"online\"\n",
     .create = create,
     .destroy = destroy,
     .last_error = last_error,

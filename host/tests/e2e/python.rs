@@ -244,7 +244,11 @@ fn the_real_kiss_icp_and_orbslam3_run_through_the_bridge() {
     // stayed within 1.7 m over 30 s of this lane when measured, its defaults within 3 m
     // (configs/peers.toml's whole routes: README). These bounds catch a run that lost the
     // route altogether (a wrong frame or time convention in the adapter), not a tuning.
-    assert!(rmse("kiss-icp-vineyard") < 5.0, "{}", rmse("kiss-icp-vineyard"));
+    assert!(
+        rmse("kiss-icp-vineyard") < 5.0,
+        "{}",
+        rmse("kiss-icp-vineyard")
+    );
     assert!(rmse("kiss-icp") < 10.0, "{}", rmse("kiss-icp"));
     // Paced to simulated time: the ORB-SLAM3 run took at least the route's 20 s.
     let timing = json(&out.join("s1/orbslam3/timing.json"));

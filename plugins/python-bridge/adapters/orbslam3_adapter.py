@@ -16,7 +16,10 @@ Parameters (all optional):
   RGB-D example settings for the TUM sequences (`Examples/RGB-D/TUM1.yaml`).
 - `inertial` (false): RGB-D-inertial (`Sensor.IMU_RGBD`): every IMU sample between two
   frames goes with the later frame; the IMU's noise densities and random walks, rate and
-  `IMU.T_b_c1` (imu_from_camera) come from the rig.
+  `IMU.T_b_c1` (imu_from_camera) come from the rig. It does not run with pyorbslam3 0.1.1
+  here: the run on S1 of our world ends in a segmentation fault at the first frames, and a
+  direct call (`track_rgbd` with two IMU rows) raises `RuntimeError: Operation not
+  permitted`; the settings it writes load (ORB-SLAM3 prints them back).
 
 The settings file is written from the first frame's size and intrinsics (depth in metres:
 `RGBD.DepthMapFactor` 1). The online pose of each frame is `pose_wc` when valid; the final
