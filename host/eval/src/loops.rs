@@ -296,7 +296,7 @@ mod tests {
         // Moved into ground truth's frame first: an alignment that shifts y by -1 m makes
         // the 1.2 m pose 0.2 m off and the 0.2 m one 0.8 m off, an improvement.
         let shift = crate::Sim3 {
-            translation: nalgebra::Vector3::new(0.0, -1.0, 0.0),
+            translation: Vector3::new(0.0, -1.0, 0.0),
             ..crate::Sim3::identity()
         };
         let aligned = judge_correction(&gt, &online(1.2), &shift, 4.5, &LoopCriteria::default())

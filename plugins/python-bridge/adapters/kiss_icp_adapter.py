@@ -15,6 +15,8 @@ import numpy as np
 from kiss_icp.config import KISSConfig
 from kiss_icp.kiss_icp import KissICP
 
+from vinebench_frames import BaseFrame
+
 SECTIONS = {
     "data": ("max_range", "min_range", "deskew"),
     "mapping": ("voxel_size", "max_points_per_voxel"),
@@ -38,18 +40,6 @@ def config_from(params):
     return config
 
 
-def isometry(xyz, xyzw):
-    x, y, z, w = xyzw
-    t = np.eye(4)
-    t[:3, :3] = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ]
-    t[:3, 3] = xyz
-    return t
-
-
 class KissIcp:
     @staticmethod
     def requirements(params):
@@ -59,8 +49,7 @@ class KissIcp:
         self.config = config_from(params)
         self.odometry = KissICP(config=self.config)
         lidar = next(s for s in rig["sensors"] if s["kind"] == "lidar")
-        self.base_from_lidar = isometry(lidar["base_from_sensor_xyz"], lidar["base_from_sensor_xyzw"])
-        self.lidar_from_base = np.linalg.inv(self.base_from_lidar)
+        self.base_frame = BaseFrame(lidar)
         self.trajectory = []
 
     def on_point_cloud(self, cloud):
@@ -78,7 +67,7 @@ class KissIcp:
             self.odometry.register_frame(points, np.array([]))
             stamp = cloud.stamp_ns
         # KISS-ICP's map frame is the lidar at the first sweep; ours is the base there.
-        pose = self.base_from_lidar @ self.odometry.last_pose @ self.lidar_from_base
+        pose = self.base_frame(self.odometry.last_pose)
         self.trajectory.append((stamp, pose))
         return stamp, pose
 

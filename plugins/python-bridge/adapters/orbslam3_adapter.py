@@ -30,12 +30,13 @@ closure, a map merge or a global bundle adjustment), without which keyframes: ea
 by the pose jump it causes. Tracking lost and recovered become events too.
 """
 
-import math
 import os
 import tempfile
 
 import numpy as np
 import pyorbslam3
+
+from vinebench_frames import BaseFrame, isometry, mounting
 
 DEFAULTS = {
     "vocabulary": "../target/orbslam3-vocabulary.txt",
@@ -48,18 +49,6 @@ DEFAULTS = {
     "baseline_m": 0.07732,
     "inertial": False,
 }
-
-
-def isometry(xyz, xyzw):
-    x, y, z, w = xyzw
-    t = np.eye(4)
-    t[:3, :3] = [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ]
-    t[:3, 3] = xyz
-    return t
 
 
 def settings_yaml(p, width, height, intrinsics, fps):
@@ -137,8 +126,8 @@ class OrbSlam3:
             )
         camera = next(s for s in rig["sensors"] if s["kind"] == "rgbd")
         self.fps = camera["rate_hz"]
-        self.base_from_camera = isometry(camera["base_from_sensor_xyz"], camera["base_from_sensor_xyzw"])
-        self.camera_from_base = np.linalg.inv(self.base_from_camera)
+        self.base_from_camera = mounting(camera)
+        self.base_pose = BaseFrame(camera)
         self.imu = next((s for s in rig["sensors"] if s["kind"] == "imu"), None)
         if self.params["inertial"] and self.imu is None:
             raise ValueError("inertial = true, but the rig has no IMU")
@@ -154,17 +143,13 @@ class OrbSlam3:
         with open(path, "w") as f:
             f.write(settings_yaml(self.params, frame.width, frame.height, frame.intrinsics, self.fps))
             if self.params["inertial"]:
-                base_from_imu = isometry(self.imu["base_from_sensor_xyz"], self.imu["base_from_sensor_xyzw"])
-                f.write(imu_yaml(self.imu, np.linalg.inv(base_from_imu) @ self.base_from_camera))
+                f.write(imu_yaml(self.imu, np.linalg.inv(mounting(self.imu)) @ self.base_from_camera))
         sensor = pyorbslam3.Sensor.IMU_RGBD if self.params["inertial"] else pyorbslam3.Sensor.RGBD
         self.slam = pyorbslam3.Slam(self.vocabulary, path, sensor)
 
     def on_imu(self, imu):
         if self.params["inertial"]:
             self.samples.append((imu.stamp_ns * 1e-9, *imu.gyro, *imu.accel))
-
-    def base_pose(self, world_from_camera):
-        return self.base_from_camera @ world_from_camera @ self.camera_from_base
 
     def on_rgbd(self, frame):
         if self.slam is None:
