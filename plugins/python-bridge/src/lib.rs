@@ -324,8 +324,8 @@ fn pose_from(value: Option<(i64, [f64; 12])>) -> Result<Option<Pose>, String> {
 }
 
 impl PythonPlugin {
-    /// Calls `function` of the bridge module with the system and `args(py, views)`, lending
-    /// memoryviews for the call; the pose it returns.
+    /// Calls `method` of the bridge module with the system and `args(py, views)`, lending
+    /// the message's buffers for the call; the pose it returns.
     fn call(
         &mut self,
         method: &str,
@@ -509,20 +509,18 @@ impl SlamSystem for PythonPlugin {
         let events = events
             .into_iter()
             .map(|(stamp, kind, detail, stamps)| {
-                let kind = match kind.as_str() {
-                    "loop_closure_accepted" => EventKind::LoopClosureAccepted,
-                    "loop_closure_rejected" => EventKind::LoopClosureRejected,
-                    "tracking_lost" => EventKind::TrackingLost,
-                    _ => EventKind::TrackingRecovered,
-                };
-                match stamps {
+                // The kind's name as events cross both ABIs (serde's snake_case).
+                let kind: EventKind = toml::Value::String(kind.clone())
+                    .try_into()
+                    .map_err(|_| fail(format!("finish: unknown event kind {kind:?}")))?;
+                Ok(match stamps {
                     Some((a, b)) if kind.is_loop_closure() => {
                         Event::loop_closure(stamp, kind, [a, b], detail)
                     }
                     _ => Event::new(stamp, kind, detail),
-                }
+                })
             })
-            .collect();
+            .collect::<Result<_, PluginError>>()?;
         let map = map.map(|bytes| {
             bytes
                 .chunks_exact(12)
