@@ -192,11 +192,10 @@ impl Sweep {
                 toml::Value::Array(a) if !a.is_empty() => a.clone(),
                 _ => anyhow::bail!("{name}: axes.\"{path}\": give a non-empty list of values"),
             };
-            if let Some(v) = values
-                .iter()
-                .find(|v| matches!(v, toml::Value::Table(_) | toml::Value::Array(_)))
-            {
-                anyhow::bail!("{name}: axes.\"{path}\": {v} is not a single value");
+            // A value may be a list (`"fence.panels" = [[]]`: no fence), not a table: an axis
+            // sets one key.
+            if let Some(v) = values.iter().find(|v| matches!(v, toml::Value::Table(_))) {
+                anyhow::bail!("{name}: axes.\"{path}\": {v} is a table, not a value of one key");
             }
             let distinct: BTreeSet<String> = values.iter().map(value_text).collect();
             anyhow::ensure!(
@@ -550,6 +549,21 @@ mod tests {
         assert!(set_dotted(&mut t, "vineyard", toml::Value::Integer(1)).is_err());
         assert!(set_dotted(&mut t, "vineyard.rows.x", toml::Value::Integer(1)).is_err());
         assert!(set_dotted(&mut t, "vineyard..rows", toml::Value::Integer(1)).is_err());
+    }
+
+    #[test]
+    fn a_list_value_replaces_the_worlds_list() {
+        // `"fence.panels" = [[]]`: the paper's world without its fence.
+        let text = include_str!("../../../configs/paper-world.toml");
+        let mut t: toml::Table = text.parse().expect("toml");
+        let before = sim::SimConfig::from_toml_str(text, "paper-world").expect("world");
+        assert_eq!(before.fence.panels.len(), 56);
+        set_dotted(&mut t, "fence.panels", toml::Value::Array(Vec::new())).expect("set");
+        let after = sim::SimConfig::from_toml_str(&toml::to_string(&t).expect("text"), "no fence")
+            .expect("world");
+        assert!(after.fence.panels.is_empty());
+        assert_eq!(after.vineyard, before.vineyard);
+        assert_eq!(value_text(&toml::Value::Array(Vec::new())), "[]");
     }
 
     #[test]

@@ -251,6 +251,7 @@ fn bad_sweep_inputs_are_one_line_naming_the_culprit() {
             "vineyard.growth_stage = 9",
         ),
         (SWEEP.replace("[0, 4]", "[]"), "non-empty"),
+        (SWEEP.replace("[0, 4]", "[{ a = 1 }]"), "is a table"),
         (SWEEP.replace("seeds = [0, 1]", "seeds = [0, 0]"), "seeds"),
         (
             SWEEP.replace("seeds = [0, 1]", "seeds = [0, 1]\nseed = 3"),
