@@ -184,17 +184,16 @@ def loop_lines(run, world, kinds=("loop_closure_accepted",)):
 
 def paper_bench(out, results, t2):
     paper = load_sweep(results / "study/paper-world-seeds")
-    ours = load_sweep(results / "study/our-world-seeds")
-    if not ours:
-        ours = load_bench(results / "vinebench")
+    ours = load_bench(results / "vinebench")
     seeds_p = sorted({r.seed for r in paper})
     seeds_o = sorted({r.seed for r in ours})
     out.append("## 1. The paper bench on both worlds, beside Table 2\n")
     out.append(
-        f"ATE after SE(3) alignment, metres; mean ± sample std over the seeds (the paper's "
-        f"world: seeds {seeds_p or 'not run'}; our world: seeds {seeds_o or 'not run'}); "
-        "loops: accepted/judged false, one pair per seed. The paper's figures are one run "
-        "each (Table 2).\n"
+        f"ATE after SE(3) alignment, metres; on the paper's world mean ± sample std over "
+        f"seeds {seeds_p or 'not run'} (configs/study/paper-world-seeds.toml); on our world "
+        f"seed {seeds_o or 'not run'} (`vinebench bench configs/vinebench.toml`); loops: "
+        "accepted/judged false, one pair per seed. The paper's figures are one run each "
+        "(Table 2).\n"
     )
     out.append("### ATE RMSE\n")
     rows = []
@@ -223,34 +222,111 @@ def paper_bench(out, results, t2):
 
 
 def eval_ape(run, align):
+    """The APE of a run under another alignment, by the host's own `vinebench eval`."""
     exe = ROOT / "target/release/vinebench"
     r = subprocess.run(
         [str(exe), "eval", str(run.dir / "groundtruth.tum"), str(run.dir / "estimate.tum"),
          "--align", align, "--json"],
         capture_output=True, text=True, check=True)
-    return json.loads(r.stdout)["rmse"]
+    return json.loads(r.stdout)
+
+
+def sim3_scale(run):
+    """The scale of the Sim(3) alignment (`vinebench eval --align sim3` prints it)."""
+    exe = ROOT / "target/release/vinebench"
+    r = subprocess.run(
+        [str(exe), "eval", str(run.dir / "groundtruth.tum"), str(run.dir / "estimate.tum"),
+         "--align", "sim3"],
+        capture_output=True, text=True, check=True)
+    return float(r.stdout.split("scale ")[1].split(")")[0])
+
+
+# Table 2's MIN row, which the paper's source has commented out (hroob2021-vineyard-slam-
+# benchmark.tex, `%MIN`): S0..S3 per system.
+PAPER_MIN = {
+    "lio-sam": [0.00, 0.00, 0.00, 0.00],
+    "staticmapping": [0.15, 0.02, 0.14, 0.03],
+    "orbslam2": [0.04, 0.02, 0.00, 0.20],
+    "rtabmap": [0.02, 0.01, 0.01, 0.01],
+}
 
 
 def alignment(out, results, t2):
     paper = load_sweep(results / "study/paper-world-seeds")
     out.append("## 2. Alignment: none, origin, SE(3)\n")
     out.append(
-        "ATE RMSE (m) of the paper's world, seed 0, recomputed by `vinebench eval` from each "
-        "run's groundtruth.tum and estimate.tum. `none`: the estimate as the system wrote it, "
-        "in its own start frame (the sensor's, not the world's); `origin`: first poses made "
-        "equal (evo's `--align_origin`); `se3`: Umeyama (the bench's). The paper does not "
-        "say which it used.\n"
+        "ATE RMSE and min (m) on the paper's world, seed 0, recomputed by `vinebench eval` "
+        "from each run's groundtruth.tum and estimate.tum. `none`: the estimate as the system "
+        "wrote it, in its own start frame, against ground truth in the world's; `origin`: "
+        "first poses made equal (evo's `--align_origin`), which makes the first error 0; "
+        "`se3`: Umeyama (the bench's); `sim3`: Umeyama with scale, and the scale it found "
+        "(below 1: the estimate is too large). The paper does not say which it used; its source "
+        "holds a commented-out MIN row, shown last.\n"
     )
     rows = []
     for sys_ in SYSTEMS[:4]:
-        for s in SCENARIOS:
+        for k, s in enumerate(SCENARIOS):
             rr = pick(paper, s, sys_, seed=0)
             if not rr:
-                rows.append([sys_, s, "not run", "", "", ""])
+                rows.append([sys_, s, "not run"] + [""] * 9)
                 continue
-            rows.append([sys_, s] + [f"{eval_ape(rr[0], a):.3f}" for a in ("none", "origin", "se3")]
-                        + [f"{t2[(s, sys_)]['rmse']:.2f}" if (s, sys_) in t2 else ""])
-    out.append(md_table(["system", "scenario", "none", "origin", "se3", "the paper"], rows))
+            e = {a: eval_ape(rr[0], a) for a in ("none", "origin", "se3", "sim3")}
+            rows.append([sys_, s, f"{e['none']['rmse']:.3f}", f"{e['origin']['rmse']:.3f}",
+                         f"{e['origin']['min']:.3f}", f"{e['se3']['rmse']:.3f}",
+                         f"{e['se3']['min']:.3f}", f"{e['sim3']['rmse']:.3f}",
+                         f"{sim3_scale(rr[0]):.3f}",
+                         f"{t2[(s, sys_)]['rmse']:.2f}" if (s, sys_) in t2 else "",
+                         f"{PAPER_MIN[sys_][k]:.2f}"])
+    out.append(md_table(["system", "scenario", "none rmse", "origin rmse", "origin min",
+                         "se3 rmse", "se3 min", "sim3 rmse", "sim3 scale", "paper rmse",
+                         "paper min"], rows))
+
+
+def scale_signature(out, results, t2):
+    """What a pure scale error would give on each route, beside what the paper reported.
+
+    An estimate that is the ground truth scaled by k about any point, aligned by SE(3)
+    Umeyama, keeps R = I (the cross-covariance k·Σ is symmetric positive) and its centroid,
+    so its error at pose i is |k - 1|·‖p_i - p̄‖: every statistic is |k - 1| times that of
+    the distances to the centroid. Scaled to the paper's RMSE, the other four statistics
+    are the pure-scale signature of the route; k is then 1 + rmse / rms(‖p_i - p̄‖).
+    """
+    paper = load_sweep(results / "study/paper-world-seeds")
+    out.append("## 2b. The shape of the paper's errors: a pure scale error, or not\n")
+    out.append(
+        "For each route (ground truth of the paper's world, seed 0, every pose), the max, "
+        "mean, median and std that an estimate off by a pure scale factor would give once "
+        "SE(3)-aligned, scaled to the paper's RMSE, beside the paper's own; and the scale "
+        "error that RMSE implies. A system whose four figures match suffered a scale error "
+        "and nothing else (derivation in scripts/study-tables.py, `scale_signature`).\n"
+    )
+    rows = []
+    for s in SCENARIOS:
+        rr = pick(paper, s, "wheel-odometry", seed=0) or pick(paper, s, "lio-sam", seed=0)
+        if not rr:
+            continue
+        pts = []
+        for line in (rr[0].dir / "groundtruth.tum").read_text().splitlines():
+            if line.startswith("#") or not line.strip():
+                continue
+            v = line.split()
+            pts.append((float(v[1]), float(v[2]), float(v[3])))
+        c = [sum(p[k] for p in pts) / len(pts) for k in range(3)]
+        d = sorted(math.dist(p, c) for p in pts)
+        rms = math.sqrt(sum(x * x for x in d) / len(d))
+        mean = sum(d) / len(d)
+        median = statistics.median(d)
+        std = math.sqrt(max(rms * rms - mean * mean, 0.0))
+        for sys_ in SYSTEMS[:4]:
+            if (s, sys_) not in t2:
+                continue
+            p = t2[(s, sys_)]
+            f = p["rmse"] / rms
+            rows.append([s, sys_, f"{p['max']:.2f} / {p['mean']:.2f} / {p['median']:.2f} / {p['std']:.2f}",
+                         f"{f * d[-1]:.2f} / {f * mean:.2f} / {f * median:.2f} / {f * std:.2f}",
+                         f"{100 * f:.1f} %"])
+    out.append(md_table(["scenario", "system", "the paper: max / mean / median / std",
+                         "pure scale error, same RMSE", "implied scale error"], rows))
 
 
 ABLATIONS = [
@@ -258,6 +334,8 @@ ABLATIONS = [
     ("lio-sam", "per-point time (sweeps taken over 0.1 s), deskew on", "ablate-per-point-time", "lio-sam"),
     ("lio-sam", "per-point time, deskew off", "ablate-per-point-time", "lio-sam-no-deskew"),
     ("lio-sam", "IMU with our MEMS noise and biases", "ablate-imu-noise", "lio-sam"),
+    ("lio-sam", "LIO-SAM's defaults: leaves 0.4 m, loop fitness 0.3, gravity 9.80511", "ablate-lio-sam-defaults",
+     "lio-sam-published-defaults"),
     ("lio-sam", "no fence", "ablate-fence", "lio-sam"),
     ("staticmapping", "no fence", "ablate-fence", "staticmapping"),
     ("staticmapping", "per-point time, deskew on", "ablate-per-point-time", "staticmapping"),
@@ -305,7 +383,7 @@ def peers(out, results):
         "vocabulary, not ORBvoc.txt.\n"
     )
     pw_seeds = load_sweep(results / "study/paper-world-seeds")
-    ow_seeds = load_sweep(results / "study/our-world-seeds") or load_bench(results / "vinebench")
+    ow_seeds = load_bench(results / "vinebench")
     peers_pw = load_bench(results / "peers-paper-world")
     peers_ow = load_bench(results / "peers")
     pv_pw = load_sweep(results / "study/plant-variation-paper-world")
@@ -321,11 +399,24 @@ def peers(out, results):
                     return rmse_cell(o3_s3)
                 return rmse_cell(pick(src0, s, label, seed=0))
             rows.append([world, label, "0"] + [cell0(s) for s in SCENARIOS])
-            rows.append([world, label, "1"] + [rmse_cell(pick(pv, s, label)) for s in SCENARIOS])
+            planned = {r.scenario for r in pv}
+            rows.append([world, label, "1"] + [
+                rmse_cell(pick(pv, s, label)) if s in planned or not planned else "–"
+                for s in SCENARIOS])
         if world == "the paper's":
             rows.append([world, "orbslam3, free pace", "0", "", "", "", rmse_cell(pick(o3_free, "s3", "orbslam3-free"))])
         for label in ("lio-sam", "kiss-icp", "kiss-icp-vineyard"):
             rows.append([world, label, "0"] + [rmse_cell(pick(prs, s, label)) for s in SCENARIOS])
+        stem = "paper-world" if world == "the paper's" else "our-world"
+        lo = load_sweep(results / f"study/lio-sam-lidar-only-{stem}")
+        rows.append([world, "lio-sam without its IMU", "0"]
+                    + [rmse_cell(pick(lo, s, "lio-sam-lidar-only")) for s in SCENARIOS])
+        if world == "ours":
+            inst = load_sweep(results / "study/kiss-icp-instant-sweeps-our-world")
+            for label in ("kiss-icp", "kiss-icp-vineyard"):
+                rows.append([world, f"{label}, instant sweeps", "0"]
+                            + [rmse_cell(pick(inst, s, label)) if s == "s0" else "–"
+                               for s in SCENARIOS])
     out.append(md_table(["world", "system", "plant variation", "S0", "S1", "S2", "S3"], rows))
     if o3_s3:
         out.append("ORB-SLAM3 on S3 of the paper's world, each run (ATE RMSE, loops, plugin RTF, "
@@ -358,6 +449,13 @@ def finding(out, results):
         cells[(label, "4", "1")] = pick(gs, "s3", label, **{"vineyard.plant_variation": "1.0"})
     rows = [[label, g, v, rmse_cell(cells[(label, g, v)])]
             for label in ("orbslam2", "orbslam3", "rtabmap") for g in "14" for v in "01"]
+    checks = load_sweep(results / "study/finding-ablations")
+    for label, what in (("orbslam2-no-loop-closing", "orbslam2, loop closing off"),
+                        ("rtabmap-no-optimize-max-error", "rtabmap, OptimizeMaxError off"),
+                        ("rtabmap-no-proximity", "rtabmap, proximity detection off")):
+        runs = pick(checks, "s3", label)
+        cells[(what, "1", "0")] = runs
+        rows.append([what, "1", "0", rmse_cell(runs)])
     out.append(md_table(["system", "growth stage", "plant variation", "ATE RMSE (loops)"], rows))
     out.append("### Every loop accepted on S3 of the paper's world\n")
     rows = []
@@ -413,7 +511,7 @@ def main():
     out = ["# The study's tables\n",
            "Written by `python3 scripts/study-tables.py` from the runs of configs/study/ "
            "(commands in docs/hroob/README.md). Do not edit by hand.\n"]
-    for part in (paper_bench, alignment, ablations):
+    for part in (paper_bench, alignment, scale_signature, ablations):
         part(out, results, t2)
     peers(out, results)
     finding(out, results)
