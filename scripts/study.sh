@@ -20,8 +20,8 @@ bench() { # a bench runs once: its folder is its mark
 }
 
 sweep paper-world-seeds
-for a in ablate-per-point-time ablate-lio-sam-defaults ablate-imu-noise ablate-fence ablate-depth-registered \
-         ablate-colour-unclipped finding-ablations lio-sam-lidar-only-paper-world \
+for a in ablate-per-point-time ablate-lio-sam-defaults ablate-imu-noise ablate-fence ablate-fence-relief ablate-depth-registered \
+         ablate-colour-unclipped ablate-rtabmap-visual-odometry finding-ablations lio-sam-lidar-only-paper-world \
          lio-sam-lidar-only-our-world; do
     sweep "$a"
 done
