@@ -394,6 +394,7 @@ ABLATIONS = [
     ("staticmapping", "per-point time, deskew off", "ablate-per-point-time", "staticmapping-no-deskew"),
     ("orbslam2", "depth registered to colour", "ablate-depth-registered", "orbslam2"),
     ("orbslam2", "colour not clipped at 10 m", "ablate-colour-unclipped", "orbslam2"),
+    ("orbslam2", "no fence (S1, S3)", "ablate-fence-orbslam2", "orbslam2"),
     ("rtabmap", "depth registered to colour", "ablate-depth-registered", "rtabmap"),
     ("rtabmap", "colour not clipped at 10 m", "ablate-colour-unclipped", "rtabmap"),
     ("rtabmap", "visual odometry instead of wheels + ICP (stretched depth, S0)",

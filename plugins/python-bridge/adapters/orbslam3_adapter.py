@@ -24,7 +24,8 @@ Parameters (all optional):
 The settings file is written from the first frame's size and intrinsics (depth in metres:
 `RGBD.DepthMapFactor` 1). The online pose of each frame is `pose_wc` when valid; the final
 trajectory is ORB-SLAM3's own `SaveTrajectoryTUM` after `shutdown()` (every frame, with the
-loop closures' corrections). ORB-SLAM3 says only that the map changed (`map_changed()`: a loop
+loop closures' corrections; the frames it could not place while lost, which it writes again
+under the last tracked frame's time, are left out). ORB-SLAM3 says only that the map changed (`map_changed()`: a loop
 closure, a map merge or a global bundle adjustment), without which keyframes: each becomes a
 `loop_closure_accepted` event at that frame's stamp without loop stamps, which the host judges
 by the pose jump it causes. Tracking lost and recovered become events too.
@@ -197,6 +198,11 @@ class OrbSlam3:
                 stamp = by_second.get(round(t, 6))
                 if stamp is None:
                     stamp = int(round(t * 1e9))
+                if trajectory and stamp <= trajectory[-1][0]:
+                    # While tracking is lost, ORB-SLAM3 repeats the last tracked frame's
+                    # time and relative pose for every frame it cannot place; those lines
+                    # are no estimate of their own.
+                    continue
                 pose = self.base_pose(isometry([float(x) for x in v[1:4]], [float(x) for x in v[4:8]]))
                 trajectory.append((stamp, pose))
         return {"trajectory": trajectory, "events": self.events}
