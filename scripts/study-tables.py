@@ -135,15 +135,22 @@ def md_table(head, rows):
 # ---------------------------------------------------------------- ground truth
 
 
+def read_tum(path):
+    """`(t, x, y, z)` of every pose of a TUM file."""
+    out = []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("#") or not line.strip():
+            continue
+        v = line.split()
+        out.append((float(v[0]), float(v[1]), float(v[2]), float(v[3])))
+    return out
+
+
 class GroundTruth:
     def __init__(self, path):
-        self.t, self.xy = [], []
-        for line in Path(path).read_text().splitlines():
-            if line.startswith("#") or not line.strip():
-                continue
-            v = line.split()
-            self.t.append(float(v[0]))
-            self.xy.append((float(v[1]), float(v[2])))
+        poses = read_tum(path)
+        self.t = [p[0] for p in poses]
+        self.xy = [(p[1], p[2]) for p in poses]
 
     def at(self, stamp_ns):
         t = stamp_ns * 1e-9
@@ -165,17 +172,6 @@ def place(xy, world):
     else:
         where = "in the rows"
     return f"({x:.1f}, {y:.1f}), {where}"
-
-
-def read_tum(path):
-    """`(t, x, y, z)` of every pose of a TUM file."""
-    out = []
-    for line in Path(path).read_text().splitlines():
-        if line.startswith("#") or not line.strip():
-            continue
-        v = line.split()
-        out.append((float(v[0]), float(v[1]), float(v[2]), float(v[3])))
-    return out
 
 
 def final_map_partner(run, stamp_ns, min_age_s=30.0):
@@ -352,12 +348,7 @@ def scale_signature(out, results, t2):
         rr = pick(paper, s, "wheel-odometry", seed=0) or pick(paper, s, "lio-sam", seed=0)
         if not rr:
             continue
-        pts = []
-        for line in (rr[0].dir / "groundtruth.tum").read_text().splitlines():
-            if line.startswith("#") or not line.strip():
-                continue
-            v = line.split()
-            pts.append((float(v[1]), float(v[2]), float(v[3])))
+        pts = [p[1:] for p in read_tum(rr[0].dir / "groundtruth.tum")]
         c = [sum(p[k] for p in pts) / len(pts) for k in range(3)]
         d = sorted(math.dist(p, c) for p in pts)
         rms = math.sqrt(sum(x * x for x in d) / len(d))
@@ -434,6 +425,11 @@ def ablations(out, results, t2):
     out.append(md_table(["system", "world", "S0", "S1", "S2", "S3"], rows))
 
 
+def orbslam3_s3_runs(results):
+    """The three paced runs of configs/study/orbslam3-s3.toml."""
+    return [r for k in (1, 2, 3) for r in load_bench(results / f"study/orbslam3-s3-run{k}")]
+
+
 def peers(out, results):
     out.append("## 4. Our systems beside the real ORB-SLAM3 and KISS-ICP\n")
     out.append(
@@ -450,7 +446,7 @@ def peers(out, results):
     peers_ow = load_bench(results / "peers")
     pv_pw = load_sweep(results / "study/plant-variation-paper-world")
     pv_ow = load_sweep(results / "study/plant-variation-our-world")
-    o3_s3 = [r for k in (1, 2, 3) for r in load_bench(results / f"study/orbslam3-s3-run{k}")]
+    o3_s3 = orbslam3_s3_runs(results)
     o3_free = load_bench(results / "study/orbslam3-s3-free")
     rows = []
     for world, seeds, prs, pv in (("the paper's", pw_seeds, peers_pw, pv_pw),
@@ -503,7 +499,7 @@ def finding(out, results):
     seeds = load_sweep(results / "study/paper-world-seeds")
     pv = load_sweep(results / "study/plant-variation-paper-world")
     gs = load_sweep(results / "study/growth-stage-paper-world")
-    o3 = [r for k in (1, 2, 3) for r in load_bench(results / f"study/orbslam3-s3-run{k}")]
+    o3 = orbslam3_s3_runs(results)
     cells = {}
     for label in ("orbslam2", "orbslam3", "rtabmap"):
         cells[(label, "1", "0")] = o3 if label == "orbslam3" else pick(seeds, "s3", label)
