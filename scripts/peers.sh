@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 
-cargo build --release --workspace
+cargo build --release
 vocabulary=target/orbslam3-vocabulary.txt
 if [ ! -f "$vocabulary" ]; then
   ./target/release/orbslam2-vocabulary --export-dbow2-text \

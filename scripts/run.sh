@@ -6,5 +6,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 
-cargo build --release --workspace
+cargo build --release
 ./target/release/vinebench bench configs/paper.toml "$@"

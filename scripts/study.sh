@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 results="${1:-results}"
-cargo build --release --workspace
+cargo build --release
 vb=target/release/vinebench
 [ -f target/orbslam3-vocabulary.txt ] || target/release/orbslam2-vocabulary \
     --export-dbow2-text plugins/orbslam2/vocabulary/vineyard-k10l6.dbow target/orbslam3-vocabulary.txt

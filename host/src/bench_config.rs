@@ -74,15 +74,6 @@ pub struct ResolvedPlugin {
     pub base_dir: PathBuf,
 }
 
-/// A route limit must be a positive, finite number of seconds; the reason when not.
-pub fn check_max_time(seconds: f64) -> Result<(), &'static str> {
-    if seconds.is_finite() && seconds > 0.0 {
-        Ok(())
-    } else {
-        Err("must be a positive number of seconds")
-    }
-}
-
 fn default_scenarios() -> Vec<String> {
     ["s0", "s1", "s2", "s3"].map(str::to_owned).to_vec()
 }
@@ -224,7 +215,8 @@ impl BenchConfig {
             );
         }
         if let Some(s) = self.max_time_s {
-            check_max_time(s).map_err(|why| anyhow::anyhow!("max_time_s = {s}: {why}"))?;
+            crate::runner::check_max_time(s)
+                .map_err(|why| anyhow::anyhow!("max_time_s = {s}: {why}"))?;
         }
         if self.memory_limit_mb < 64 {
             bail!(

@@ -1,5 +1,6 @@
 //! Writes a simulated stream to a folder: ground truth as TUM, lidar as KITTI `.bin` with
-//! `times.txt`, 2D scans, IMU and odometry as CSV, and a top view of the world and route.
+//! `times.txt`, the camera as a TUM RGB-D sequence (`rgbd/`, with `camera.yaml`), 2D scans,
+//! IMU and odometry as CSV, and a top view of the world and route.
 //! The folder is written under a temporary name and renamed when complete, so a failed run
 //! never leaves half-written results.
 
@@ -25,6 +26,8 @@ pub struct Dump {
     lidar_count: usize,
     scans: [Option<BufWriter<File>>; 2],
     rgbd_lists: Option<[BufWriter<File>; 3]>,
+    /// The camera's rate and `base_from_optical`, for `rgbd/camera.yaml`.
+    camera: (f64, nalgebra::Isometry3<f64>),
 }
 
 fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
@@ -34,7 +37,7 @@ fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
 }
 
 impl Dump {
-    pub fn create(dir: &Path, sim: &Simulation) -> anyhow::Result<Self> {
+    pub fn create(dir: &Path, sim: &Simulation, config: &sim::SimConfig) -> anyhow::Result<Self> {
         if dir.exists() && !dir.join(MARKER).exists() && fs::read_dir(dir)?.next().is_some() {
             bail!(
                 "{} exists and was not written by vinebench simulate; choose another --out",
@@ -62,6 +65,10 @@ impl Dump {
             lidar_count: 0,
             scans: [None, None],
             rgbd_lists: None,
+            camera: (
+                config.sensors.camera.rate_hz,
+                config.sensors.camera.mount.base_from_sensor() * sim::camera::camera_from_optical(),
+            ),
         })
     }
 
@@ -141,7 +148,8 @@ impl Dump {
 
     /// One camera frame in the TUM RGB-D layout (Sturm et al. 2012): `rgbd/rgb/<t>.png`,
     /// `rgbd/depth/<t>.png` (16-bit, metres × 5000, 0 invalid), listed in `rgb.txt` and
-    /// `depth.txt`, and paired in `associations.txt` as ORB-SLAM2's and RTAB-Map's tools read.
+    /// `depth.txt`, and paired in `associations.txt` as ORB-SLAM2's and RTAB-Map's tools read;
+    /// the first frame also writes `rgbd/camera.yaml`.
     fn write_rgbd(&mut self, frame: &sim::sensors::RgbdFrame) -> anyhow::Result<()> {
         let dir = self.tmp.join("rgbd");
         if self.rgbd_lists.is_none() {
@@ -158,6 +166,7 @@ impl Dump {
                 "# depth maps (16-bit PNG, depth in metres x 5000, 0: invalid)\n# timestamp filename"
             )?;
             self.rgbd_lists = Some(lists);
+            write_camera_yaml(&dir.join("camera.yaml"), frame, self.camera)?;
         }
         let t = seconds(frame.stamp_ns);
         let image = &frame.image;
@@ -235,6 +244,43 @@ fn open<'a>(
         *slot = Some(w);
     }
     Ok(slot.as_mut().expect("just opened"))
+}
+
+/// `camera.yaml`: the camera's intrinsics in the keys of ORB-SLAM2/3's RGB-D settings files
+/// (OpenCV `FileStorage` YAML; pinhole without distortion, depth PNGs in metres × 5000), and
+/// where it sits on the robot (`groundtruth.tum` is the base's pose, not the camera's).
+fn write_camera_yaml(
+    path: &Path,
+    frame: &sim::sensors::RgbdFrame,
+    (rate_hz, base_from_optical): (f64, nalgebra::Isometry3<f64>),
+) -> anyhow::Result<()> {
+    let [fx, fy, cx, cy] = frame.image.intrinsics;
+    let m = base_from_optical.to_homogeneous();
+    let rows: Vec<String> = (0..4)
+        .map(|r| {
+            (0..4)
+                .map(|c| format!("{:.9}", m[(r, c)]))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .collect();
+    let text = format!(
+        "%YAML:1.0\n\
+         # The simulated RGB-D camera: pinhole, no distortion, colour and depth registered (one\n\
+         # image plane); depth PNG values are metres x DepthMapFactor, 0 where invalid.\n\
+         Camera.type: \"PinHole\"\n\
+         Camera.fx: {fx}\nCamera.fy: {fy}\nCamera.cx: {cx}\nCamera.cy: {cy}\n\
+         Camera.k1: 0.0\nCamera.k2: 0.0\nCamera.p1: 0.0\nCamera.p2: 0.0\nCamera.k3: 0.0\n\
+         Camera.width: {}\nCamera.height: {}\nCamera.fps: {rate_hz}\nCamera.RGB: 1\n\
+         DepthMapFactor: 5000.0\n\
+         # base_link from the camera's optical frame (x right, y down, z forward), row-major,\n\
+         # metres: groundtruth.tum is base_link's pose in the world.\n\
+         base_from_camera: !!opencv-matrix\n   rows: 4\n   cols: 4\n   dt: d\n   data: [ {} ]\n",
+        frame.image.width,
+        frame.image.height,
+        rows.join(",\n           ")
+    );
+    fs::write(path, text).with_context(|| path.display().to_string())
 }
 
 fn scan_header(scan: &LaserScan) -> String {

@@ -7,6 +7,7 @@ pub mod dataset;
 pub mod dump;
 pub mod plugins;
 pub mod report;
+pub mod results;
 pub mod rig;
 pub mod runner;
 pub mod sweep;

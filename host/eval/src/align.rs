@@ -32,6 +32,20 @@ pub enum Alignment {
     FourDof,
 }
 
+impl Alignment {
+    /// The name the command line, bench files and `metrics.json` give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Origin => "origin",
+            Self::Se3 => "se3",
+            Self::Sim3 => "sim3",
+            Self::Scale => "scale",
+            Self::FourDof => "4dof",
+        }
+    }
+}
+
 /// A similarity transform `p ↦ R (s p) + t` applied to the estimate (`aligned_from_est`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sim3 {

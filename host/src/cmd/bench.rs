@@ -1,12 +1,17 @@
 //! `vinebench bench FILE.toml`: a matrix of scenarios × plugins, the paper's table.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use anyhow::Context as _;
 use clap::Args;
 
 use crate::bench_config::BenchConfig;
-use crate::runner::{Plan, PlannedRun, execute};
+use crate::cmd::progress::Progress;
+use crate::report::load::IndexedRun;
+use crate::report::reference;
+use crate::results::{RunOutcome, Staging};
+use crate::runner::{Plan, PlannedRun};
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -30,17 +35,8 @@ pub fn default_jobs() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }
 
-/// `--max-time` checked: a positive number of seconds, or the error naming the flag.
-pub fn max_time_flag(seconds: Option<f64>) -> anyhow::Result<Option<f64>> {
-    if let Some(s) = seconds {
-        crate::bench_config::check_max_time(s)
-            .map_err(|why| anyhow::anyhow!("--max-time {s}: {why}"))?;
-    }
-    Ok(seconds)
-}
-
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
-    let max_time_s = max_time_flag(args.max_time)?;
+    let max_time_s = crate::cmd::sim_args::max_time_flag(args.max_time)?;
     let cfg = BenchConfig::from_file(&args.file)?;
     anyhow::ensure!(
         !cfg.is_sweep(),
@@ -67,15 +63,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "bench".into());
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results").join(stem));
     let plan = Plan {
-        out: args
-            .out
-            .clone()
-            .unwrap_or_else(|| PathBuf::from("results").join(stem)),
         world: cfg.world.clone(),
         seed: cfg.bench_seed(),
         scenarios: cfg.scenarios.clone(),
-        labels,
         runs,
         jobs: args.jobs.or(cfg.jobs).unwrap_or_else(default_jobs),
         timeout: Duration::from_secs_f64(cfg.timeout_s),
@@ -85,20 +80,48 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         max_time_s: max_time_s.or(cfg.max_time_s),
         share_simulation: cfg.share_simulation,
         bars: true,
-        paper_table: cfg.paper_table.clone(),
     };
-    report(&plan).map(drop)
+    bench(&plan, &out, &labels, cfg.paper_table.as_deref()).map(drop)
 }
 
-/// Executes a plan and prints its table and where the results are. A failed run does not
-/// fail the bench: it is in the table with its reason.
-pub fn report(plan: &Plan) -> anyhow::Result<crate::runner::Executed> {
-    let executed = execute(plan)?;
-    println!("{}", executed.table_markdown);
-    println!("results: {}", executed.dir.display());
+/// Runs a plan into the results folder `out` (written whole, then moved into place), writes
+/// its reports (with `paper_table`, the published table it reproduces, copied in and shown
+/// beside its figures), and prints its table and where the results are. A failed run does
+/// not fail the bench: it is in the table with its reason.
+pub fn bench(
+    plan: &Plan,
+    out: &Path,
+    labels: &[String],
+    paper_table: Option<&Path>,
+) -> anyhow::Result<Vec<RunOutcome>> {
+    let staging = Staging::begin(out)?;
+    if let Some(path) = paper_table {
+        // Checked before anything runs; copied so that the folder reports alone.
+        reference::Reference::load(path)?;
+        let copy = staging.dir().join(reference::FILE);
+        std::fs::copy(path, &copy).with_context(|| copy.display().to_string())?;
+    }
+    let progress = Progress::new(plan.runs.len(), false);
+    let outcomes = crate::runner::execute(plan, staging.dir(), &|_, outcome| {
+        progress.finished(&format!("{}/{}", outcome.scenario, outcome.label), outcome);
+    })?;
+    let index: Vec<IndexedRun> = outcomes
+        .iter()
+        .map(|o| IndexedRun {
+            scenario: o.scenario.clone(),
+            plugin: o.label.clone(),
+            status: o.status.clone(),
+            max_time_s: o.max_time_s,
+        })
+        .collect();
+    let name = crate::results::folder_name(out);
+    let table = crate::report::write_bench(staging.dir(), &name, &plan.scenarios, labels, &index)?;
+    let dir = staging.commit()?;
+    println!("{table}");
+    println!("results: {}", dir.display());
     println!(
         "report: {}",
-        executed.dir.join(crate::report::html::REPORT).display()
+        dir.join(crate::report::html::REPORT).display()
     );
-    Ok(executed)
+    Ok(outcomes)
 }

@@ -1,68 +1,70 @@
-//! `vinebench export`: simulate a scenario and write ground truth and lidar in the formats
-//! other tools read, with [`crate::dump::Dump`]'s writers: `groundtruth.tum` (TUM RGB-D
-//! benchmark trajectory format: `t x y z qx qy qz qw`, world frame) and `lidar/NNNNNN.bin`
-//! with `lidar/times.txt` (KITTI odometry velodyne format: x, y, z, reflectance as
-//! little-endian f32, sensor frame; one sweep start time per line), plus `topview.png`.
+//! `vinebench export`: simulate a scenario and write it in the formats other tools read, with
+//! [`crate::dump::Dump`]'s writers:
+//! - `groundtruth.tum`: the base's pose (TUM RGB-D benchmark trajectory format,
+//!   `t x y z qx qy qz qw`, world frame);
+//! - `rgbd/`: the camera as a TUM RGB-D sequence (Sturm et al., IROS 2012): `rgb/<t>.png`,
+//!   `depth/<t>.png` (16-bit, metres × 5000), `rgb.txt`, `depth.txt`, `associations.txt`, and
+//!   `camera.yaml` with the intrinsics (ORB-SLAM2/3's RGB-D settings keys) and the camera's
+//!   mount;
+//! - `lidar/NNNNNN.bin` with `lidar/times.txt` (KITTI odometry velodyne format: x, y, z,
+//!   reflectance as little-endian f32, sensor frame; one sweep start time per line);
+//! - `topview.png`.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context as _;
 use clap::Args;
-use sim::{SensorSet, Simulation};
+use sim::SensorSet;
 
+use crate::cmd::sim_args::{SimArgs, Simulated};
 use crate::dump::Dump;
 
 #[derive(Debug, Args)]
-#[command(
-    after_help = "TUM RGB-D sequences (rgb/, depth/, associations) come with the RGB-D camera, \
-                  which the simulator does not have yet."
-)]
 pub struct ExportArgs {
-    /// Scenario: s0, s1, s2, s3 or a route named in the world file.
-    #[arg(long)]
-    pub scenario: String,
-    /// Folder to write: groundtruth.tum (TUM), lidar/*.bin + lidar/times.txt (KITTI).
+    #[command(flatten)]
+    pub sim: SimArgs,
+    /// Folder to write: groundtruth.tum (TUM), rgbd/ (TUM RGB-D), lidar/*.bin +
+    /// lidar/times.txt (KITTI).
     #[arg(long)]
     pub out: PathBuf,
-    /// Simulator configuration (configs/world.toml shape); defaults are built in.
-    #[arg(long)]
-    pub world: Option<PathBuf>,
-    /// Seed of all sensor noise.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Stop after this many simulated seconds (default: the whole route).
-    #[arg(long, value_name = "SECONDS")]
-    pub max_time: Option<f64>,
+    /// Sensors to export: any of gt,lidar,rgbd (ground truth always). The camera costs
+    /// about the route's time to render and 2 MB per frame on disk.
+    #[arg(long, default_value = "gt,lidar,rgbd")]
+    pub sensors: String,
 }
 
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let config = sim::SimConfig::load(args.world.as_deref())?;
-    let sim = Simulation::new(&config, &args.scenario, args.seed)?;
-    let duration_ns = match args.max_time {
-        Some(s) if s.is_finite() && s > 0.0 => sim.duration_ns().min((s * 1e9) as i64),
-        Some(s) => anyhow::bail!("--max-time {s}: must be a positive number of seconds"),
-        None => sim.duration_ns(),
-    };
+    let chosen: SensorSet = args
+        .sensors
+        .parse()
+        .map_err(|e: String| anyhow::anyhow!("--sensors {}: {e}", args.sensors))?;
+    anyhow::ensure!(
+        !(chosen.imu || chosen.wheel_odometry || chosen.scan2d),
+        "--sensors {}: export writes gt, lidar and rgbd (simulate --out writes the others as CSV)",
+        args.sensors
+    );
     let sensors = SensorSet {
         ground_truth: true,
-        lidar: true,
-        ..SensorSet::default()
+        ..chosen
     };
-    let mut dump = Dump::create(&args.out, &sim)
+    let Simulated {
+        config,
+        sim,
+        end_ns,
+    } = args.sim.simulate()?;
+    let mut dump = Dump::create(&args.out, &sim, &config)
         .with_context(|| format!("cannot write to {}", args.out.display()))?;
-    let mut sweeps = 0u64;
-    for message in sim
-        .stream(sensors)
-        .take_while(|m| m.stamp_ns() <= duration_ns)
-    {
+    let (mut sweeps, mut frames) = (0u64, 0u64);
+    for message in sim.stream(sensors).take_while(|m| m.stamp_ns() <= end_ns) {
         sweeps += u64::from(matches!(message, sim::sensors::Message::Lidar(_)));
+        frames += u64::from(matches!(message, sim::sensors::Message::Rgbd(_)));
         dump.write(&message)?;
     }
     let dir = dump.finish()?;
     println!(
-        "wrote {}: groundtruth.tum, {sweeps} lidar sweeps in lidar/ ({:.2} s)",
+        "wrote {}: groundtruth.tum, {frames} RGB-D frames in rgbd/, {sweeps} lidar sweeps in lidar/ ({:.2} s)",
         dir.display(),
         started.elapsed().as_secs_f64()
     );

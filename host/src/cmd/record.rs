@@ -8,46 +8,39 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use sim::{SensorSet, Simulation};
+use sim::SensorSet;
 
+use crate::cmd::sim_args::{SimArgs, Simulated};
 use crate::dataset::{EPOCH_NS, Recorder};
 
 #[derive(Debug, Args)]
 pub struct RecordArgs {
-    /// Scenario: s0, s1, s2, s3 or a route named in the world file.
-    #[arg(long)]
-    pub scenario: String,
+    #[command(flatten)]
+    pub sim: SimArgs,
     /// The MCAP file to write (replaced if it exists; written under a temporary name first).
     #[arg(short = 'o', long = "output", value_name = "FILE.mcap")]
     pub output: PathBuf,
-    /// Simulator configuration (configs/world.toml shape); defaults are built in.
-    #[arg(long)]
-    pub world: Option<PathBuf>,
     /// Sensors to record: any of gt,imu,odom,lidar,scan2d,rgbd, or all. The camera (rgbd)
     /// is left out by default: it adds about 64 MB per simulated second.
     #[arg(long, default_value = "gt,imu,odom,lidar,scan2d")]
     pub sensors: String,
-    /// Seed of all sensor noise.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Stop after this many simulated seconds (default: the whole route).
-    #[arg(long, value_name = "SECONDS")]
-    pub max_time: Option<f64>,
 }
 
 /// What made the recording, stored as its `vinebench` metadata record.
 fn metadata(args: &RecordArgs) -> anyhow::Result<BTreeMap<String, String>> {
-    let world = match &args.world {
+    let world = match &args.sim.world {
         Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
         None => sim::DEFAULT_CONFIG_TOML.to_owned(),
     };
     Ok(BTreeMap::from([
-        ("scenario".to_owned(), args.scenario.clone()),
-        ("seed".to_owned(), args.seed.to_string()),
+        ("scenario".to_owned(), args.sim.scenario.clone()),
+        ("seed".to_owned(), args.sim.seed.to_string()),
         ("sensors".to_owned(), args.sensors.clone()),
         (
             "max_time_s".to_owned(),
-            args.max_time.map_or("none".to_owned(), |t| t.to_string()),
+            args.sim
+                .max_time
+                .map_or("none".to_owned(), |t| t.to_string()),
         ),
         ("epoch_ns".to_owned(), EPOCH_NS.to_string()),
         ("world_toml".to_owned(), world),
@@ -64,13 +57,11 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<()> {
         .sensors
         .parse()
         .map_err(|e: String| anyhow::anyhow!("--sensors {}: {e}", args.sensors))?;
-    let config = sim::SimConfig::load(args.world.as_deref())?;
-    let sim = Simulation::new(&config, &args.scenario, args.seed)?;
-    let duration_ns = match args.max_time {
-        Some(s) if s.is_finite() && s > 0.0 => sim.duration_ns().min((s * 1e9) as i64),
-        Some(s) => anyhow::bail!("--max-time {s}: must be a positive number of seconds"),
-        None => sim.duration_ns(),
-    };
+    let Simulated {
+        config,
+        sim,
+        end_ns: duration_ns,
+    } = args.sim.simulate()?;
     let mut recorder = Recorder::create(&args.output, &config, sensors, metadata(args)?)?;
     let bar = ProgressBar::new(duration_ns as u64 / 1_000_000);
     bar.set_style(
@@ -78,7 +69,7 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<()> {
             .expect("valid template")
             .progress_chars("=> "),
     );
-    bar.set_prefix(format!("record {}", args.scenario));
+    bar.set_prefix(format!("record {}", args.sim.scenario));
     let mut counts = BTreeMap::<&'static str, u64>::new();
     for message in sim
         .stream(sensors)
@@ -97,7 +88,7 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<()> {
         "wrote {} ({:.1} MB): {simulated:.1} s of {}; messages: {}",
         args.output.display(),
         bytes as f64 / 1e6,
-        args.scenario,
+        args.sim.scenario,
         summary.join(", ")
     );
     println!("wall time: {wall:.2} s");

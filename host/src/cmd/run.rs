@@ -7,23 +7,19 @@ use anyhow::Context as _;
 use clap::Args;
 
 use crate::bench_config::Align;
+use crate::cmd::sim_args::SimArgs;
 use crate::runner::{Plan, PlannedRun};
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    #[arg(long)]
-    pub scenario: String,
+    #[command(flatten)]
+    pub sim: SimArgs,
     /// Plugin name (searched for) or path to its library.
     #[arg(long)]
     pub plugin: String,
     /// The plugin's parameters (TOML), handed to it verbatim.
     #[arg(long)]
     pub plugin_config: Option<PathBuf>,
-    /// Simulator configuration (configs/world.toml shape).
-    #[arg(long)]
-    pub world: Option<PathBuf>,
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
     /// Results folder (default: results/run).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -38,16 +34,13 @@ pub struct RunArgs {
     /// instead of the live simulator.
     #[arg(long, value_name = "FILE.mcap")]
     pub dataset: Option<PathBuf>,
-    /// Cut the route at this many simulated seconds (default: the whole route).
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
-    pub max_time: Option<f64>,
     /// More directories to search for plugins.
     #[arg(long = "plugin-dir")]
     pub plugin_dirs: Vec<PathBuf>,
 }
 
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
-    let max_time_s = crate::cmd::bench::max_time_flag(args.max_time)?;
+    let max_time_s = args.sim.max_time_s()?;
     let dirs = crate::plugins::search_path(&args.plugin_dirs);
     let path = crate::plugins::resolve(&args.plugin, &dirs)?;
     let params_toml = match &args.plugin_config {
@@ -68,18 +61,17 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         args.timeout_s
     );
     let label = plugin_label(&args.plugin);
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results/run"));
     let plan = Plan {
-        out: args
-            .out
-            .clone()
-            .unwrap_or_else(|| PathBuf::from("results/run")),
-        world: args.world.clone(),
-        seed: args.seed,
-        scenarios: vec![args.scenario.clone()],
-        labels: vec![label.clone()],
+        world: args.sim.world.clone(),
+        seed: args.sim.seed,
+        scenarios: vec![args.sim.scenario.clone()],
         runs: vec![PlannedRun {
-            scenario: args.scenario.clone(),
-            label,
+            scenario: args.sim.scenario.clone(),
+            label: label.clone(),
             plugin: path,
             params_toml,
             pace: crate::runner::Pace::Free,
@@ -96,13 +88,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         // One run: nothing to share.
         share_simulation: false,
         bars: true,
-        paper_table: None,
     };
-    let executed = crate::cmd::bench::report(&plan)?;
+    let outcomes = crate::cmd::bench::bench(&plan, &out, std::slice::from_ref(&label), None)?;
     // One run: its failure is the command's failure (the results folder is still written).
-    match executed.records.first().map(|r| &r.status) {
-        Some(crate::report::RunStatus::Failed(why)) => {
-            anyhow::bail!("{} on {} failed: {why}", plan.labels[0], args.scenario)
+    match outcomes.first().map(|r| &r.status) {
+        Some(crate::results::RunStatus::Failed(why)) => {
+            anyhow::bail!("{label} on {} failed: {why}", args.sim.scenario)
         }
         _ => Ok(()),
     }

@@ -7,28 +7,20 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use sim::{SensorSet, Simulation};
+use sim::SensorSet;
 
+use crate::cmd::sim_args::{SimArgs, Simulated};
 use crate::dump::Dump;
 
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
-    /// Scenario: s0, s1, s2, s3 or a route named in the world file.
-    #[arg(long)]
-    pub scenario: String,
-    /// Simulator configuration (configs/world.toml shape); defaults are built in.
-    #[arg(long)]
-    pub world: Option<PathBuf>,
-    /// Sensors to simulate: any of gt,imu,odom,lidar,scan2d, or all.
+    #[command(flatten)]
+    pub sim: SimArgs,
+    /// Sensors to simulate: any of gt,imu,odom,lidar,scan2d,rgbd, or all.
     #[arg(long, default_value = "all")]
     pub sensors: String,
-    /// Seed of all sensor noise.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Stop after this many simulated seconds (default: the whole route).
-    #[arg(long, value_name = "SECONDS")]
-    pub max_time: Option<f64>,
-    /// Write the data here: ground truth TUM, lidar KITTI .bin + times.txt, CSVs, top view.
+    /// Write the data here: ground truth TUM, lidar KITTI .bin + times.txt, camera as TUM
+    /// RGB-D (rgbd/), CSVs, top view.
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -39,21 +31,19 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         .sensors
         .parse()
         .map_err(|e: String| anyhow::anyhow!("--sensors {}: {e}", args.sensors))?;
-    let config = sim::SimConfig::load(args.world.as_deref())?;
-    let sim = Simulation::new(&config, &args.scenario, args.seed)?;
+    let Simulated {
+        config,
+        sim,
+        end_ns: duration_ns,
+    } = args.sim.simulate()?;
     let mut dump = match &args.out {
         Some(dir) => Some(
-            Dump::create(dir, &sim)
+            Dump::create(dir, &sim, &config)
                 .with_context(|| format!("cannot write to {}", dir.display()))?,
         ),
         None => None,
     };
 
-    let duration_ns = match args.max_time {
-        Some(s) if s.is_finite() && s > 0.0 => sim.duration_ns().min((s * 1e9) as i64),
-        Some(s) => anyhow::bail!("--max-time {s}: must be a positive number of seconds"),
-        None => sim.duration_ns(),
-    };
     let bar = ProgressBar::new(duration_ns as u64 / 1_000_000);
     bar.set_style(
         ProgressStyle::with_template(
@@ -62,7 +52,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         .expect("valid template")
         .progress_chars("=> "),
     );
-    bar.set_prefix(format!("simulate {}", args.scenario));
+    bar.set_prefix(format!("simulate {}", args.sim.scenario));
     let mut counts = std::collections::BTreeMap::<&'static str, u64>::new();
     let mut lidar_points = 0u64;
     for message in sim
@@ -88,7 +78,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
     println!(
         "scenario {}: {:.1} m in {simulated:.1} s simulated; messages: {}; lidar points {lidar_points}",
-        args.scenario,
+        args.sim.scenario,
         crate::dump::path_length(&sim),
         summary.join(", ")
     );

@@ -1,16 +1,13 @@
 //! `vinebench sweep FILE.toml`: a bench file plus axes (seeds, world keys), every cell one
 //! run, resumable, here or on a Slurm cluster; then the aggregate ([`crate::sweep`]).
 
-use std::io::IsTerminal as _;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::report::{RunRecord, RunStatus};
-use crate::sweep::{self, Cell, Sweep, aggregate, slurm};
+use crate::cmd::progress::Progress;
+use crate::sweep::{self, Sweep, aggregate, slurm};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Executor {
@@ -59,71 +56,8 @@ pub fn run_task(args: &SweepTaskArgs) -> anyhow::Result<()> {
     slurm::run_task(&args.tasks, args.index)
 }
 
-/// Progress: a bar with ETA on a terminal, else one line per finished run.
-struct Progress {
-    total: usize,
-    done: AtomicUsize,
-    started: Instant,
-    bar: Option<ProgressBar>,
-}
-
-impl Progress {
-    fn new(total: usize) -> Self {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let bar = ProgressBar::new(total as u64);
-            bar.set_style(
-                ProgressStyle::with_template(
-                    "{elapsed_precise} [{bar:40}] {pos}/{len} runs, ETA {eta}",
-                )
-                .expect("valid template")
-                .progress_chars("=> "),
-            );
-            bar
-        });
-        Self {
-            total,
-            done: AtomicUsize::new(0),
-            started: Instant::now(),
-            bar,
-        }
-    }
-
-    fn finished(&self, cell: &Cell, record: &RunRecord) {
-        let k = self.done.fetch_add(1, Ordering::SeqCst) + 1;
-        let outcome = match (&record.status, &record.ape) {
-            (RunStatus::Ok, Some(ape)) => format!("ok, ATE RMSE {:.3} m", ape.rmse),
-            (RunStatus::Ok, None) => "ok".to_owned(),
-            (RunStatus::Failed(why), _) => format!("failed: {why}"),
-        };
-        let line = format!("[{k}/{}] {}: {outcome}", self.total, cell.describe());
-        match &self.bar {
-            Some(bar) => {
-                bar.println(line);
-                bar.inc(1);
-            }
-            None => {
-                let elapsed = self.started.elapsed().as_secs_f64();
-                let eta = elapsed / k as f64 * (self.total - k) as f64;
-                println!("{line} (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
-            }
-        }
-    }
-
-    fn set(&self, filed: usize) {
-        if let Some(bar) = &self.bar {
-            bar.set_position(filed as u64);
-        }
-    }
-
-    fn finish(&self) {
-        if let Some(bar) = &self.bar {
-            bar.finish_and_clear();
-        }
-    }
-}
-
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
-    let max_time_s = crate::cmd::bench::max_time_flag(args.max_time)?;
+    let max_time_s = crate::cmd::sim_args::max_time_flag(args.max_time)?;
     let sweep = Sweep::load(&args.file, max_time_s)?;
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args
@@ -154,15 +88,15 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             missing.len()
         );
         if !missing.is_empty() {
-            let progress = Progress::new(missing.len());
+            let progress = Progress::new(missing.len(), true);
             match args.executor {
                 Executor::Local => {
                     let jobs = args
                         .jobs
                         .or(sweep.cfg.jobs)
                         .unwrap_or_else(crate::cmd::bench::default_jobs);
-                    sweep::run_local(&sweep, &out, &missing, jobs, &|cell, record| {
-                        progress.finished(cell, record)
+                    sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
+                        progress.finished(&cell.describe(), outcome)
                     })?;
                 }
                 Executor::Slurm => {
@@ -185,8 +119,8 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
         }
     }
     let agg = aggregate::collect(&sweep, &out)?;
-    aggregate::write(&agg, &out)?;
-    println!("{}", aggregate::render_markdown(&agg));
+    crate::report::sweep::write(&agg, &out)?;
+    println!("{}", crate::report::sweep::render_markdown(&agg));
     println!("results: {}", out.display());
     println!(
         "report: {}",

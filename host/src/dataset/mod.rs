@@ -43,12 +43,14 @@ mod replay;
 mod results;
 mod schemas;
 mod topics;
+mod wire;
 
 pub use error::DatasetError;
 pub use recorder::Recorder;
 pub use replay::{Replay, replay_messages};
 pub use results::{JudgedLoop, RunResults, write_results};
 pub use topics::Topic;
+pub use wire::{Assembler, RosMessage, ScanTiming, to_ros};
 
 /// Simulated time 0 in the file's ROS time: 1.7e9 s after the Unix epoch, in nanoseconds.
 pub const EPOCH_NS: i64 = 1_700_000_000_000_000_000;

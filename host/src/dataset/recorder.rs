@@ -8,20 +8,20 @@ use std::path::Path;
 
 use sim::SimConfig;
 use sim::config::Side;
-use sim::sensors::{LaserScan, Message, ScanSide};
+use sim::sensors::Message;
 
 use super::mcap_file::McapFile;
 use super::topics::{
     CAMERA_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
 };
+use super::wire::{ScanTiming, to_ros};
 use super::{DatasetError, encode};
 
 /// An MCAP recording being written; [`Recorder::finish`] puts it in place.
 pub struct Recorder {
     file: McapFile,
     channels: BTreeMap<Topic, u16>,
-    /// Per 2D scanner: scan period (s) and how long after its stamp a scan is complete (ns).
-    scan_timing: [(f32, i64); 2],
+    scan_timing: ScanTiming,
 }
 
 impl std::fmt::Debug for Recorder {
@@ -31,15 +31,6 @@ impl std::fmt::Debug for Recorder {
             .field("channels", &self.channels)
             .finish_non_exhaustive()
     }
-}
-
-/// How long after its stamp a 2D scan is complete, as [`sim::sensors::Scan2dSensor`] times it:
-/// the mirror turns once per period, samples `time_increment` apart.
-fn scan_timing(cfg: &sim::config::Scan2dConfig) -> (f32, i64) {
-    let angle_increment = (cfg.angle_max_rad - cfg.angle_min_rad) / (cfg.samples - 1) as f64;
-    let time_increment_s = angle_increment / std::f64::consts::TAU / cfg.rate_hz;
-    let sweep_ns = (time_increment_s * (cfg.samples - 1) as f64 * 1e9).round() as i64;
-    ((1.0 / cfg.rate_hz) as f32, sweep_ns)
 }
 
 impl Recorder {
@@ -62,7 +53,7 @@ impl Recorder {
         let mut recorder = Self {
             file,
             channels,
-            scan_timing: [scan_timing(&s.scan2d_front), scan_timing(&s.scan2d_back)],
+            scan_timing: ScanTiming::new(config),
         };
         let mounts = [
             (IMU_FRAME, s.imu.mount.base_from_sensor()),
@@ -95,42 +86,12 @@ impl Recorder {
         self.file.put(channel, ready_ns, data)
     }
 
-    fn scan(&mut self, m: &LaserScan) -> Result<(), DatasetError> {
-        let (topic, frame, (scan_time_s, sweep_ns)) = match m.side {
-            ScanSide::Front => (Topic::ScanFront, LASER_FRONT_FRAME, self.scan_timing[0]),
-            ScanSide::Back => (Topic::ScanBack, LASER_BACK_FRAME, self.scan_timing[1]),
-        };
-        let data = encode::laser_scan(m, frame, scan_time_s);
-        self.put(topic, m.stamp_ns + sweep_ns, &data)
-    }
-
     /// Appends one message, logged at the time it became available.
     pub fn write(&mut self, message: &Message) -> Result<(), DatasetError> {
-        match message {
-            Message::GroundTruth(m) => {
-                self.put(Topic::GroundTruth, m.stamp_ns, &encode::pose_stamped(m))?;
-                self.put(
-                    Topic::GroundTruthTwist,
-                    m.stamp_ns,
-                    &encode::twist_stamped(m),
-                )
-            }
-            Message::Imu(m) => self.put(Topic::Imu, m.stamp_ns, &encode::imu(m)),
-            Message::WheelOdometry(m) => self.put(Topic::Odom, m.stamp_ns, &encode::odometry(m)),
-            Message::Lidar(m) => self.put(
-                Topic::Points,
-                m.stamp_ns + m.sweep_ns,
-                &encode::point_cloud(m),
-            ),
-            Message::Scan2d(m) => self.scan(m),
-            // A frame is available whole at its stamp (global shutter); the camera info comes
-            // last and completes it on replay.
-            Message::Rgbd(m) => {
-                self.put(Topic::ColorImage, m.stamp_ns, &encode::color_image(m))?;
-                self.put(Topic::DepthImage, m.stamp_ns, &encode::depth_image(m))?;
-                self.put(Topic::CameraInfo, m.stamp_ns, &encode::camera_info(m))
-            }
+        for (topic, ready_ns, data) in to_ros(message, &self.scan_timing) {
+            self.put(topic, ready_ns, &data)?;
         }
+        Ok(())
     }
 
     /// Writes the summary, flushes and moves the file into place; returns its size in bytes.

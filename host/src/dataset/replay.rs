@@ -7,13 +7,12 @@ use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-use nalgebra::Isometry3;
 use sim::SensorSet;
-use sim::sensors::{Message, ScanSide};
+use sim::sensors::Message;
 
-use super::decode::Plane;
 use super::topics::Topic;
-use super::{DatasetError, EPOCH_NS, decode};
+use super::wire::Assembler;
+use super::{DatasetError, EPOCH_NS};
 
 /// The messages of a recording made by [`super::Recorder`], exactly as the simulator made
 /// them and in the same order; topics of sensors outside the chosen set, `/tf_static` and
@@ -27,11 +26,8 @@ pub struct Replay {
     channels: BTreeMap<u16, Option<Topic>>,
     /// Schema id → schema name.
     schemas: BTreeMap<u16, String>,
-    /// A `/ground_truth` pose waiting for its `/ground_truth/twist`.
-    pose: Option<(i64, Isometry3<f64>)>,
-    /// A camera frame's colour and depth images waiting for its camera info.
-    color: Option<Plane<u8>>,
-    depth: Option<Plane<f32>>,
+    /// The messages of a ground truth or camera frame read so far.
+    assembler: Assembler,
     done: bool,
 }
 
@@ -57,9 +53,7 @@ impl Replay {
             sensors,
             channels: BTreeMap::new(),
             schemas: BTreeMap::new(),
-            pose: None,
-            color: None,
-            depth: None,
+            assembler: Assembler::default(),
             done: false,
         })
     }
@@ -84,62 +78,6 @@ impl Replay {
         self.channels
             .insert(channel.id, topic.filter(|&t| t != Topic::TfStatic));
         Ok(())
-    }
-
-    /// Decodes one message of a topic that is replayed; `None` for the first half of a
-    /// ground truth (its pose) and the images of a camera frame before its camera info.
-    fn decode(
-        &mut self,
-        topic: Topic,
-        log_time: u64,
-        data: &[u8],
-    ) -> Result<Option<Message>, DatasetError> {
-        let ready_ns = log_time as i64 - EPOCH_NS;
-        Ok(Some(match topic {
-            Topic::Imu => Message::Imu(decode::imu(data)?),
-            Topic::Odom => Message::WheelOdometry(decode::odometry(data)?),
-            Topic::Points => Message::Lidar(decode::point_cloud(data, ready_ns)?),
-            Topic::ScanFront => Message::Scan2d(decode::laser_scan(data, ScanSide::Front)?),
-            Topic::ScanBack => Message::Scan2d(decode::laser_scan(data, ScanSide::Back)?),
-            Topic::GroundTruth => {
-                self.pose = Some(decode::pose_stamped(data)?);
-                return Ok(None);
-            }
-            Topic::GroundTruthTwist => {
-                let pose = self
-                    .pose
-                    .take()
-                    .ok_or_else(|| DatasetError::decode("a twist without the pose before it"))?;
-                Message::GroundTruth(decode::twist_stamped(data, pose)?)
-            }
-            Topic::ColorImage => {
-                if self.color.is_some() {
-                    return Err(DatasetError::decode(
-                        "a colour image follows one without its camera info",
-                    ));
-                }
-                self.color = Some(decode::color_image(data)?);
-                return Ok(None);
-            }
-            Topic::DepthImage => {
-                if self.color.is_none() || self.depth.is_some() {
-                    return Err(DatasetError::decode(
-                        "a depth image without a colour image just before it",
-                    ));
-                }
-                self.depth = Some(decode::depth_image(data)?);
-                return Ok(None);
-            }
-            Topic::CameraInfo => {
-                let (Some(color), Some(depth)) = (self.color.take(), self.depth.take()) else {
-                    return Err(DatasetError::decode(
-                        "a camera info without the colour and depth images before it",
-                    ));
-                };
-                Message::Rgbd(decode::camera_info(data, color, depth)?)
-            }
-            Topic::TfStatic => return Ok(None),
-        }))
     }
 
     fn next_message(&mut self) -> Result<Option<Message>, DatasetError> {
@@ -173,9 +111,8 @@ impl Replay {
                         )
                     })?;
                     let Some(topic) = topic else { continue };
-                    // `data` borrows the reader; decoding needs `self` for the pending pose.
-                    let data = data.into_owned();
-                    let decoded = self.decode(topic, header.log_time, &data).map_err(|e| {
+                    let ready_ns = header.log_time as i64 - EPOCH_NS;
+                    let decoded = self.assembler.push(topic, ready_ns, &data).map_err(|e| {
                         DatasetError::invalid(
                             &self.path,
                             format!("{} message {}: {e}", topic.name(), header.sequence),

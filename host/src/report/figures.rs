@@ -37,11 +37,11 @@ pub(super) fn map_chart(
     run_dir: &Path,
     detail: &RunDetail,
 ) -> anyhow::Result<Option<Chart>> {
-    let path = run_dir.join(crate::runner::files::MAP);
+    let path = run_dir.join(crate::results::files::MAP);
     if !path.exists() {
         return Ok(None);
     }
-    let points = crate::runner::read_ply(&path)?;
+    let points = crate::results::read_ply(&path)?;
     // The map around the trajectory: a lidar's far returns (ground rings tens of metres
     // out) would shrink the vineyard to a corner.
     let (mut lo_x, mut hi_x, mut lo_y, mut hi_y) = (
@@ -124,8 +124,8 @@ pub(super) fn grid_chart(
     detail: &RunDetail,
 ) -> anyhow::Result<Option<Chart>> {
     let (pgm, yaml) = (
-        run_dir.join(crate::runner::files::GRID),
-        run_dir.join(crate::runner::files::GRID_YAML),
+        run_dir.join(crate::results::files::GRID),
+        run_dir.join(crate::results::files::GRID_YAML),
     );
     if !pgm.exists() {
         return Ok(None);
@@ -281,7 +281,7 @@ mod tests {
             cells: vec![-1, 0, 100, 100, 0, -1],
         };
         let (pgm, yaml) = (dir.path().join("g.pgm"), dir.path().join("g.yaml"));
-        crate::runner::write_grid(&pgm, &yaml, &grid).unwrap();
+        crate::results::write_grid(&pgm, &yaml, &grid).unwrap();
         let (w, h, px) = read_pgm(&pgm).unwrap();
         assert_eq!((w, h), (3, 2));
         // The last grid row first.

@@ -27,6 +27,7 @@ use super::load::{BenchResults, LoadedRun};
 use super::plot::{LoopSegment, Track, WIDTH_PX, scenario_chart};
 use super::table::Table;
 use super::{RunStatus, markdown};
+use crate::results::aggregate::Aggregate;
 
 /// The page's file name in a results folder.
 pub const REPORT: &str = "report.html";
@@ -138,7 +139,7 @@ fn page(title: &str, body: &str) -> String {
 
 /// Writes `report.html` into `dir` whole (a temporary name, then renamed) and returns its
 /// size in bytes.
-fn write_page(dir: &Path, html: &str) -> anyhow::Result<u64> {
+pub(super) fn write_page(dir: &Path, html: &str) -> anyhow::Result<u64> {
     let path = dir.join(REPORT);
     let tmp = dir.join(format!(".{REPORT}.tmp"));
     std::fs::write(&tmp, html).with_context(|| format!("writing {}", tmp.display()))?;
@@ -452,18 +453,18 @@ fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
         let rows = [
             (
                 "real-time factor (the system's calls)",
-                fmt_opt(t.realtime_factor_plugin, 2),
+                fmt_opt(Some(t.realtime_factor_plugin), 2),
             ),
             (
                 "real-time factor (wall clock)",
-                fmt_opt(t.realtime_factor, 2),
+                fmt_opt(Some(t.realtime_factor), 2),
             ),
             ("simulated (s)", format!("{:.1}", t.simulated_s)),
             ("wall (s)", format!("{:.1}", t.wall_s)),
-            ("in the system's calls (s)", fmt_opt(t.plugin_s, 1)),
+            ("in the system's calls (s)", fmt_opt(Some(t.plugin_s), 1)),
             ("CPU (s)", fmt_opt(t.cpu_s, 1)),
             ("peak memory (MB)", fmt_opt(t.peak_rss_mb, 1)),
-            ("data", t.source.clone().unwrap_or_else(|| "n/a".into())),
+            ("data", t.source.clone()),
         ];
         for (label, value) in rows {
             let _ = writeln!(
@@ -532,8 +533,8 @@ fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
 }
 
 /// The page of a sweep from its aggregate and plots.
-pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyhow::Result<String> {
-    use crate::sweep::aggregate::{ate_chart, failure_lines, row_cells};
+pub fn sweep_page(name: &str, agg: &Aggregate) -> anyhow::Result<String> {
+    use super::sweep::{ate_chart, failure_lines, row_cells};
     let mut body = String::new();
     let _ = writeln!(body, "<h1>vinebench sweep: {}</h1>", esc(name));
     let seeds: Vec<String> = agg.seeds.iter().map(u64::to_string).collect();
@@ -616,10 +617,7 @@ pub fn sweep_page(name: &str, agg: &crate::sweep::aggregate::Aggregate) -> anyho
 }
 
 /// Writes a sweep's `report.html` into `dir`; returns its size in bytes.
-pub fn write_sweep_report(
-    dir: &Path,
-    agg: &crate::sweep::aggregate::Aggregate,
-) -> anyhow::Result<u64> {
+pub fn write_sweep_report(dir: &Path, agg: &Aggregate) -> anyhow::Result<u64> {
     let name = dir
         .canonicalize()
         .ok()

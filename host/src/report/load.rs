@@ -1,20 +1,21 @@
-//! Reads a bench's results folder back: `table.json` (the column order, each run's status
-//! and real-time factor) and every run's folder (`metrics.json`, the trajectories, the
-//! judged loops of `events.json`, `timing.json`, `run.toml`). `vinebench report DIR` and
-//! the bench itself build the HTML report from this, so a rebuilt report is the bench's.
+//! Reads a bench's results back: the runs' index (the runner's outcomes, or `table.json` when
+//! a report is rebuilt: the column order and how each run ended) and every run's folder
+//! through [`crate::results::RunFolder`] (`metrics.json`, `ape.csv`, the trajectories, the
+//! judged loops of `events.json`, `timing.json`, `run.toml`). The bench and `vinebench
+//! report DIR` build their pages from this, so a rebuilt report is the bench's.
 
 use std::fmt;
 use std::marker::PhantomData;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-use eval::{ApeOptions, LoopCounts, Statistics};
+use plugin_api::EventKind;
 use serde::Deserialize;
 use serde::de::{Deserializer, MapAccess, Visitor};
 
+use super::RunRecord;
 use super::plot::LoopSegment;
-use super::{RunRecord, RunStatus};
-use crate::runner::files;
+use crate::results::{RunFolder, RunStatus};
 
 /// A JSON object's entries in file order (serde_json's map sorts its keys).
 struct Ordered<T>(Vec<(String, T)>);
@@ -43,68 +44,30 @@ impl<'de, T: Deserialize<'de>> Deserialize<'de> for Ordered<T> {
 #[derive(Deserialize)]
 struct TableEntry {
     status: String,
-    realtime_factor: Option<f64>,
     max_time_s: Option<f64>,
 }
 
-/// `metrics.json`, as `runner::evaluate` writes it.
-#[derive(Deserialize)]
-struct MetricsFile {
-    alignment: String,
-    ape: Statistics,
-    loops: LoopCounts,
-}
-
-/// The judged events of `events.json` the report draws: accepted loops.
-#[derive(Deserialize)]
-struct EventEntry {
-    stamp_ns: u64,
-    kind: String,
-    #[serde(default)]
-    detail: String,
-    loop_stamps_ns: Option<[u64; 2]>,
-    true_loop: Option<bool>,
-    gt_distance_m: Option<f64>,
+/// A run as the bench's index lists it: the order of the columns and how each run ended.
+#[derive(Debug, Clone)]
+pub struct IndexedRun {
+    pub scenario: String,
+    pub plugin: String,
+    pub status: RunStatus,
+    pub max_time_s: Option<f64>,
 }
 
 /// One accepted loop closure as the report lists it.
 #[derive(Debug, Clone)]
 pub struct AcceptedLoop {
-    pub stamp_ns: u64,
+    pub stamp_ns: i64,
     pub detail: String,
     /// The two stamps it joins, if the event carried them.
-    pub stamps_ns: Option<[u64; 2]>,
+    pub stamps_ns: Option<[i64; 2]>,
     /// Ground truth's judgement; `None`: not judged.
     pub true_loop: Option<bool>,
     pub gt_distance_m: Option<f64>,
     /// The segment on the aligned estimate, when the stamps lie on it.
     pub segment: Option<LoopSegment>,
-}
-
-/// `timing.json`'s latency of one kind of call.
-#[derive(Debug, Clone, Deserialize)]
-pub struct Latency {
-    pub calls: u64,
-    pub p50_ms: f64,
-    pub p99_ms: f64,
-    pub max_ms: f64,
-    pub total_s: f64,
-}
-
-/// `timing.json`.
-#[derive(Debug, Clone, Deserialize)]
-pub struct Timing {
-    pub source: Option<String>,
-    pub simulated_s: f64,
-    pub wall_s: f64,
-    pub plugin_s: Option<f64>,
-    pub cpu_s: Option<f64>,
-    pub peak_rss_mb: Option<f64>,
-    pub realtime_factor: Option<f64>,
-    pub realtime_factor_plugin: Option<f64>,
-    /// Per kind of call (sensor, `finish`), in name order.
-    #[serde(default)]
-    pub latency: std::collections::BTreeMap<String, Latency>,
 }
 
 /// What an ok run's folder holds beyond the table's numbers.
@@ -129,7 +92,7 @@ pub struct LoadedRun {
     pub dir: PathBuf,
     /// For ok runs.
     pub detail: Option<RunDetail>,
-    pub timing: Option<Timing>,
+    pub timing: Option<crate::results::Timing>,
     /// The resolved `run.toml`, if written.
     pub run_toml: Option<String>,
 }
@@ -144,7 +107,7 @@ pub struct BenchResults {
 }
 
 impl BenchResults {
-    /// Reads `dir/table.json` and the folder of every run it lists.
+    /// Reads `dir/table.json` (the bench's index) and the folder of every run it lists.
     pub fn load(dir: &Path) -> anyhow::Result<Self> {
         let table_path = dir.join("table.json");
         let text = std::fs::read_to_string(&table_path).with_context(|| {
@@ -155,20 +118,40 @@ impl BenchResults {
         })?;
         let table: Ordered<Ordered<TableEntry>> = serde_json::from_str(&text)
             .with_context(|| format!("{}: not a vinebench table", table_path.display()))?;
-        let (mut scenarios, mut plugins, mut runs) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut scenarios, mut plugins, mut index) = (Vec::new(), Vec::new(), Vec::new());
         for (scenario, entries) in table.0 {
             for (plugin, entry) in entries.0 {
                 if !plugins.contains(&plugin) {
                     plugins.push(plugin.clone());
                 }
-                let run_dir = dir.join(&scenario).join(&plugin);
-                runs.push(
-                    load_run(&scenario, &plugin, &entry, &run_dir)
-                        .with_context(|| format!("reading the run {}", run_dir.display()))?,
-                );
+                index.push(IndexedRun {
+                    scenario: scenario.clone(),
+                    plugin,
+                    status: RunStatus::from_text(&entry.status),
+                    max_time_s: entry.max_time_s,
+                });
             }
             scenarios.push(scenario);
         }
+        Self::read(dir, scenarios, plugins, &index)
+    }
+
+    /// Reads the folder (`dir/<scenario>/<plugin>`) of every run of `index`; `scenarios`
+    /// and `plugins` give the column order.
+    pub fn read(
+        dir: &Path,
+        scenarios: Vec<String>,
+        plugins: Vec<String>,
+        index: &[IndexedRun],
+    ) -> anyhow::Result<Self> {
+        let runs = index
+            .iter()
+            .map(|run| {
+                let folder = RunFolder::new(dir.join(&run.scenario).join(&run.plugin));
+                load_run(run, &folder)
+                    .with_context(|| format!("reading the run {}", folder.dir.display()))
+            })
+            .collect::<anyhow::Result<_>>()?;
         Ok(Self {
             dir: dir.to_path_buf(),
             scenarios,
@@ -178,77 +161,41 @@ impl BenchResults {
     }
 }
 
-fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<T> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}: malformed", path.display()))
-}
-
-fn load_run(
-    scenario: &str,
-    plugin: &str,
-    entry: &TableEntry,
-    dir: &Path,
-) -> anyhow::Result<LoadedRun> {
-    let timing = dir
-        .join(files::TIMING)
-        .exists()
-        .then(|| read_json::<Timing>(&dir.join(files::TIMING)))
-        .transpose()?;
-    let run_toml = std::fs::read_to_string(dir.join(files::RUN)).ok();
+fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
+    let timing = folder.read_timing()?;
+    let run_toml = folder.read_run_toml();
     let mut record = RunRecord {
-        scenario: scenario.to_owned(),
-        plugin: plugin.to_owned(),
-        status: RunStatus::Ok,
+        scenario: run.scenario.clone(),
+        plugin: run.plugin.clone(),
+        status: run.status.clone(),
         ape: None,
-        realtime_factor: entry.realtime_factor,
+        realtime_factor: None,
         loops: None,
         estimate_xy: Vec::new(),
-        max_time_s: entry.max_time_s,
+        max_time_s: run.max_time_s,
     };
-    if entry.status != "ok" {
-        let reason = entry
-            .status
-            .strip_prefix("failed: ")
-            .unwrap_or(&entry.status);
-        record.status = RunStatus::Failed(reason.to_owned());
+    if run.status != RunStatus::Ok {
         return Ok(LoadedRun {
             record,
-            dir: dir.to_path_buf(),
+            dir: folder.dir.clone(),
             detail: None,
             timing,
             run_toml,
         });
     }
-    let metrics: MetricsFile = read_json(&dir.join(files::METRICS))?;
-    let alignment = crate::runner::alignment_from_name(&metrics.alignment).with_context(|| {
-        format!(
-            "{}: unknown alignment {:?}",
-            dir.join(files::METRICS).display(),
-            metrics.alignment
-        )
-    })?;
-    let gt = eval::read_tum(dir.join(files::GROUNDTRUTH))?;
-    let estimate = eval::read_tum(dir.join(files::ESTIMATE))?;
-    let ape = eval::evaluate_ape(
-        &gt,
-        &estimate,
-        &ApeOptions {
-            alignment,
-            ..ApeOptions::default()
-        },
-    )
-    .with_context(|| format!("evaluating {}", dir.join(files::ESTIMATE).display()))?;
+    let metrics = folder.read_metrics()?;
+    let ape = folder.read_ape()?;
+    let gt = folder.read_groundtruth()?;
+    let estimate = folder.read_estimate()?;
     let xy = |p: &nalgebra::Isometry3<f64>| (p.translation.x, p.translation.y);
-    let aligned: Vec<(f64, f64)> = ape.pairs.estimate.iter().map(xy).collect();
-    let stamps_s = ape.pairs.stamps.clone();
-    let events: Vec<EventEntry> = read_json(&dir.join(files::EVENTS))?;
-    let loops = events
+    let aligned = ape.aligned_xy();
+    let loops = folder
+        .read_judged_events()?
         .into_iter()
-        .filter(|e| e.kind == "loop_closure_accepted")
+        .filter(|e| e.event.kind == EventKind::LoopClosureAccepted)
         .map(|e| {
-            let segment = e.loop_stamps_ns.and_then(|[a, b]| {
-                let at = |ns: u64| nearest(&stamps_s, ns as f64 * 1e-9).map(|i| aligned[i]);
+            let segment = e.event.loop_stamps_ns.and_then(|[a, b]| {
+                let at = |ns: i64| nearest(&ape.stamps_s, ns as f64 * 1e-9).map(|i| aligned[i]);
                 Some(LoopSegment {
                     from: at(a)?,
                     to: at(b)?,
@@ -256,9 +203,9 @@ fn load_run(
                 })
             });
             AcceptedLoop {
-                stamp_ns: e.stamp_ns,
-                detail: e.detail,
-                stamps_ns: e.loop_stamps_ns,
+                stamp_ns: e.event.stamp_ns,
+                detail: e.event.detail,
+                stamps_ns: e.event.loop_stamps_ns,
                 true_loop: e.true_loop,
                 gt_distance_m: e.gt_distance_m,
                 segment,
@@ -266,19 +213,22 @@ fn load_run(
         })
         .collect();
     record.ape = Some(metrics.ape);
+    // The system's own speed: a shared simulation sets the pace of its whole group, and the
+    // simulator's time is not the system's.
+    record.realtime_factor = timing.as_ref().map(|t| t.realtime_factor_plugin);
     record.loops = Some(metrics.loops);
     record.estimate_xy = aligned;
     let detail = RunDetail {
         alignment: metrics.alignment,
         groundtruth_xy: gt.poses.iter().map(xy).collect(),
         estimate_raw_xy: estimate.poses.iter().map(xy).collect(),
-        stamps_s,
-        errors_m: ape.errors,
+        stamps_s: ape.stamps_s,
+        errors_m: ape.errors_m,
         loops,
     };
     Ok(LoadedRun {
         record,
-        dir: dir.to_path_buf(),
+        dir: folder.dir.clone(),
         detail: Some(detail),
         timing,
         run_toml,

@@ -24,30 +24,57 @@ fn cell(text: &str) -> String {
     text.replace('|', "\\|")
 }
 
-/// The Markdown of `table`, ending with a newline.
+/// The Markdown of `table`, ending with a newline: one table of every column under a
+/// two-level header, then the notes.
 pub(super) fn render(table: &Table) -> String {
     let n = table.columns.len();
-    // Every line as [label, cell per column]; the first is the header.
-    let mut lines: Vec<Vec<String>> = Vec::new();
     let mut header = vec![String::new(); n + 1];
     header[0] = "scenario".to_owned();
     for (scenario, range) in table.groups() {
         header[range.start + 1] = cell(scenario);
     }
-    lines.push(header);
-    lines.push(
-        std::iter::once("system".to_owned())
-            .chain(table.columns.iter().map(|c| cell(&c.run.plugin)))
-            .collect(),
-    );
+    let systems = std::iter::once("system".to_owned())
+        .chain(table.columns.iter().map(|c| cell(&c.run.plugin)))
+        .collect();
+    let mut out = grid(table, 0..n, vec![header, systems]);
+    out.push_str(&notes(table));
+    out
+}
+
+/// The same table for a terminal: one block per scenario (its name above its systems), so
+/// that a bench of many systems stays narrow, then the notes.
+pub(super) fn render_blocks(table: &Table) -> String {
+    let mut out = String::new();
+    for (k, (scenario, range)) in table.groups().into_iter().enumerate() {
+        if k > 0 {
+            out.push('\n');
+        }
+        let header = std::iter::once(cell(scenario))
+            .chain(
+                table.columns[range.clone()]
+                    .iter()
+                    .map(|c| cell(&c.run.plugin)),
+            )
+            .collect();
+        out.push_str(&grid(table, range, vec![header]));
+    }
+    out.push_str(&notes(table));
+    out
+}
+
+/// Columns `cols` of the table under the `head` lines (label first, then one per column),
+/// padded; a rule under the first.
+fn grid(table: &Table, cols: std::ops::Range<usize>, head: Vec<Vec<String>>) -> String {
+    // Every line as [label, cell per column]; the first is the header.
+    let mut lines = head;
     for row in table.rows() {
         lines.push(
             std::iter::once(row.label.to_owned())
-                .chain((0..n).map(|i| row.text(i)))
+                .chain(cols.clone().map(|i| row.text(i)))
                 .collect(),
         );
     }
-    let widths: Vec<usize> = (0..=n)
+    let widths: Vec<usize> = (0..=cols.len())
         .map(|j| {
             lines
                 .iter()
@@ -76,6 +103,12 @@ pub(super) fn render(table: &Table) -> String {
             out.push('\n');
         }
     }
+    out
+}
+
+/// What follows the table: the captions, a cut route, unjudged loops, failed runs.
+fn notes(table: &Table) -> String {
+    let mut out = String::new();
     let _ = write!(out, "\n{CAPTION}\n");
     if table.reference.is_some() {
         let _ = write!(out, "\n{PAPER_CAPTION}\n");

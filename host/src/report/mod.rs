@@ -10,7 +10,11 @@
 //! - `plot.rs`: the overlay plots (PNG and SVG);
 //! - `html.rs` (with `load.rs`, which reads a results folder back, and `figures.rs`):
 //!   `report.html`, built from the results folder alone, so `vinebench report DIR`
-//!   rebuilds exactly what the bench wrote.
+//!   rebuilds exactly what the bench wrote;
+//! - `sweep.rs`: a sweep's files from its aggregate.
+//!
+//! The commands call it ([`write_bench`], [`sweep::write`]) once the runs are in their
+//! folders; it reads them through [`crate::results`] and runs nothing.
 
 mod csv;
 mod figures;
@@ -21,6 +25,7 @@ pub mod load;
 mod markdown;
 pub mod plot;
 pub mod reference;
+pub mod sweep;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -31,15 +36,7 @@ use anyhow::Context as _;
 
 use table::Table;
 
-/// How one (scenario, plugin) run ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum RunStatus {
-    /// The run finished and was evaluated.
-    Ok,
-    /// The run did not produce a result; the reason is shown in the reports
-    /// (e.g. `"timed out after 600 s"`).
-    Failed(String),
-}
+pub use crate::results::RunStatus;
 
 /// Everything the report needs about one run.
 #[derive(Debug, Clone)]
@@ -122,24 +119,65 @@ pub fn write_reports(
     reference: Option<&reference::Reference>,
 ) -> anyhow::Result<String> {
     let table = Table::new(scenarios, plugins, runs)?.with_reference(reference);
+    write_tables(dir, &table, truths)
+}
+
+/// Writes the tables and plots of `table` into `dir`; returns `table.md`'s text.
+fn write_tables(dir: &Path, table: &Table, truths: &[ScenarioTruth]) -> anyhow::Result<String> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("creating the results folder {}", dir.display()))?;
-    let markdown = markdown::render(&table);
+    let markdown = markdown::render(table);
     write_file(&dir.join("table.md"), &markdown)?;
-    write_file(&dir.join("table.csv"), &csv::render(&table))?;
-    write_file(&dir.join("table.tex"), &latex::render(&table))?;
-    write_file(&dir.join("table.json"), &json::render(&table)?)?;
-    plot::write_plots(&dir.join("plots"), &table, truths)?;
+    write_file(&dir.join("table.csv"), &csv::render(table))?;
+    write_file(&dir.join("table.tex"), &latex::render(table))?;
+    write_file(&dir.join("table.json"), &json::render(table)?)?;
+    plot::write_plots(&dir.join("plots"), table, truths)?;
     Ok(markdown)
+}
+
+/// Writes every report of a bench whose runs are in `dir` (`dir/<scenario>/<label>`, each
+/// as `index` lists it; `paper.csv` in `dir` if the bench reproduces a published table):
+/// the tables and plots of [`write_reports`] and `report.html` (titled `name`), all from
+/// the runs' folders. Returns the table for a terminal: one block per scenario.
+///
+/// The plots' ground truth is the scenario's first finished run's `groundtruth.tum`, drawn
+/// as the page draws it.
+pub fn write_bench(
+    dir: &Path,
+    name: &str,
+    scenarios: &[String],
+    labels: &[String],
+    index: &[load::IndexedRun],
+) -> anyhow::Result<String> {
+    let results = load::BenchResults::read(dir, scenarios.to_vec(), labels.to_vec(), index)?;
+    let reference = reference::Reference::in_folder(dir)?;
+    let records: Vec<RunRecord> = results.runs.iter().map(|r| r.record.clone()).collect();
+    let truths: Vec<ScenarioTruth> = scenarios
+        .iter()
+        .filter_map(|s| {
+            let detail = results
+                .runs
+                .iter()
+                .filter(|r| &r.record.scenario == s)
+                .find_map(|r| r.detail.as_ref())?;
+            Some(ScenarioTruth {
+                scenario: s.clone(),
+                groundtruth_xy: figures::decimate(&detail.groundtruth_xy, figures::MAX_LINE_POINTS),
+            })
+        })
+        .collect();
+    let table = Table::new(scenarios, labels, &records)?.with_reference(reference.as_ref());
+    write_tables(dir, &table, &truths)?;
+    html::write_page(dir, &html::bench_page(&results, name)?)?;
+    Ok(markdown::render_blocks(&table))
 }
 
 /// Rebuilds `report.html` of the results folder `dir`, a bench's or a sweep's (which has
 /// the sweep marker); returns its path and size in bytes.
 pub fn rebuild_html(dir: &Path) -> anyhow::Result<(std::path::PathBuf, u64)> {
     anyhow::ensure!(dir.is_dir(), "{}: no such results folder", dir.display());
-    let bytes = if crate::sweep::is_sweep_folder(dir) {
-        let agg = crate::sweep::aggregate::read(dir)?;
-        html::write_sweep_report(dir, &agg)?
+    let bytes = if crate::results::is_sweep_folder(dir) {
+        html::write_sweep_report(dir, &sweep::read(dir)?)?
     } else {
         let name = dir
             .canonicalize()

@@ -4,87 +4,32 @@
 //! ([`crate::dataset::write_results`]) with the estimate and map aligned by the transform
 //! of that APE.
 
-use std::path::Path;
-
 use anyhow::Context as _;
-use eval::{Alignment, ApeOptions, LoopCounts, Sim3, Statistics, Trajectory};
+use eval::{Alignment, ApeOptions, Sim3, Trajectory};
 use plugin_api::EventKind;
-use serde::Serialize;
 
-use super::job::files;
-use super::loops::JudgedEvent;
 use crate::dataset::{JudgedLoop, RunResults};
+use crate::results::{ApeSeries, JudgedEvent, Metrics, RunFolder, files};
 
-/// metrics.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Metrics {
-    pub alignment: String,
-    /// APE translation of the final trajectory, metres.
-    pub ape: Statistics,
-    /// APE translation of the poses returned during the run, if any.
-    pub online_ape: Option<Statistics>,
-    /// Loop closures accepted (of those, how many were false and, if any, how many could
-    /// not be judged) and rejected.
-    pub loops: LoopCounts,
-}
-
-/// The scores and the aligned final estimate's top view.
-#[derive(Debug, Clone)]
-pub struct Scored {
-    pub metrics: Metrics,
-    pub estimate_xy: Vec<(f64, f64)>,
-}
-
-pub fn alignment_name(a: Alignment) -> &'static str {
-    match a {
-        Alignment::None => "none",
-        Alignment::Origin => "origin",
-        Alignment::Se3 => "se3",
-        Alignment::Sim3 => "sim3",
-        Alignment::Scale => "scale",
-        Alignment::FourDof => "4dof",
-    }
-}
-
-/// The alignment named by [`alignment_name`] (as `metrics.json` records it).
-pub fn alignment_from_name(name: &str) -> Option<Alignment> {
-    [
-        Alignment::None,
-        Alignment::Origin,
-        Alignment::Se3,
-        Alignment::Sim3,
-        Alignment::Scale,
-        Alignment::FourDof,
-    ]
-    .into_iter()
-    .find(|&a| alignment_name(a) == name)
-}
-
-/// Evaluates the run in `dir`, writes its metrics.json, rewrites its events.json with
-/// the judgement of every accepted loop and writes its results.mcap.
-pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
-    let gt = eval::read_tum(dir.join(files::GROUNDTRUTH))?;
+/// Evaluates the run in `run`: writes its metrics.json, rewrites its events.json with the
+/// judgement of every accepted loop, and writes its ape.csv and results.mcap.
+pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
+    let gt = run.read_groundtruth()?;
     let options = ApeOptions {
         alignment,
         ..ApeOptions::default()
     };
-    let estimate = eval::read_tum(dir.join(files::ESTIMATE))?;
+    let estimate = run.read_estimate()?;
     let final_ = eval::evaluate_ape(&gt, &estimate, &options)
-        .with_context(|| format!("evaluating {}", dir.join(files::ESTIMATE).display()))?;
-    let online_path = dir.join(files::ONLINE);
-    let online = if online_path.exists() {
-        let trajectory = eval::read_tum(&online_path)?;
-        let stats = eval::evaluate_ape(&gt, &trajectory, &options)?.stats;
-        Some((trajectory, stats))
-    } else {
-        None
+        .with_context(|| format!("evaluating {}", run.path(files::ESTIMATE).display()))?;
+    let online = match run.read_online()? {
+        Some(trajectory) => {
+            let stats = eval::evaluate_ape(&gt, &trajectory, &options)?.stats;
+            Some((trajectory, stats))
+        }
+        None => None,
     };
-    let events_path = dir.join(files::EVENTS);
-    let events: Vec<plugin_api::Event> = serde_json::from_str(
-        &std::fs::read_to_string(&events_path)
-            .with_context(|| events_path.display().to_string())?,
-    )
-    .with_context(|| events_path.display().to_string())?;
+    let events = run.read_events()?;
     let (loops, judged) = super::loops::judge(
         events,
         &gt,
@@ -94,48 +39,47 @@ pub fn evaluate(dir: &Path, alignment: Alignment) -> anyhow::Result<Scored> {
             map_from_estimate: &final_.transform,
         }),
     );
-    super::worker::write_json(&events_path, &judged)?;
+    run.write_judged_events(&judged)?;
     let metrics = Metrics {
-        alignment: alignment_name(alignment).to_owned(),
+        alignment: alignment.name().to_owned(),
         ape: final_.stats,
         online_ape: online.map(|(_, stats)| stats),
         loops,
     };
-    super::worker::write_json(&dir.join(files::METRICS), &metrics)?;
+    run.write_metrics(&metrics)?;
+    run.write_ape(&ApeSeries {
+        stamps_s: final_.pairs.stamps.clone(),
+        aligned: final_
+            .pairs
+            .estimate
+            .iter()
+            .map(|p| p.translation.vector.into())
+            .collect(),
+        errors_m: final_.errors.clone(),
+    })?;
     write_results(
-        dir,
+        run,
         &gt,
         &estimate,
         &metrics.alignment,
         &final_.transform,
         &judged,
-    )?;
-    let estimate_xy = final_
-        .pairs
-        .estimate
-        .iter()
-        .map(|p| (p.translation.x, p.translation.y))
-        .collect();
-    Ok(Scored {
-        metrics,
-        estimate_xy,
-    })
+    )
 }
 
 /// Writes `dir`'s results.mcap: the ground truth, the estimate and map.ply (if any) moved
 /// into the ground truth's frame by `map_from_estimate` (the APE's alignment), and every
 /// judged accepted loop.
 fn write_results(
-    dir: &Path,
+    run: &RunFolder,
     groundtruth: &Trajectory,
     estimate: &Trajectory,
     alignment: &str,
     map_from_estimate: &Sim3,
     judged: &[JudgedEvent],
 ) -> anyhow::Result<()> {
-    let map_path = dir.join(files::MAP);
-    let map_points = if map_path.exists() {
-        Some(super::outputs::read_ply(&map_path)?)
+    let map_points = if run.has(files::MAP) {
+        Some(crate::results::read_ply(&run.path(files::MAP))?)
     } else {
         None
     };
@@ -150,7 +94,7 @@ fn write_results(
         })
         .collect();
     crate::dataset::write_results(
-        &dir.join(files::RESULTS),
+        &run.path(files::RESULTS),
         &RunResults {
             groundtruth,
             estimate,

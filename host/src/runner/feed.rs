@@ -4,14 +4,15 @@
 //!
 //! The same messages as the worker's own simulation would give, bit for bit: every sensor
 //! draws its noise from its own seeded stream (`sim::rng::stream(seed, sensor)`), so which
-//! other sensors run beside it changes nothing, and the wire format below carries every
-//! value's exact bits. `host/tests/e2e/bench.rs` checks that shared and unshared runs give the
-//! same estimates.
+//! other sensors run beside it changes nothing, and every message travels as the ROS 2
+//! messages a recording holds (the host's one message codec, [`crate::dataset::to_ros`] and
+//! [`crate::dataset::Assembler`]), which carry every value's exact bits.
+//! `host/tests/e2e/bench.rs` checks that shared and unshared runs give the same estimates.
 //!
-//! Wire format (all little-endian): frames of `tag: u8`, `length: u64`, `payload`; the tag
-//! names the message kind, and tag [`END`] (empty payload) closes a complete stream, so a
-//! worker whose stream stops without it knows the simulation did not finish. Poses travel as
-//! translation then quaternion `(i, j, k, w)`, as f64 bits.
+//! Framing (little-endian): frames of `tag: u8`, `ready_ns: i64` (when the message became
+//! available, as a recording's log time), `length: u64`, `payload` (CDR); the tag is the
+//! topic's index in [`Topic::ALL`], and tag [`END`] (empty payload) closes a complete stream,
+//! so a worker whose stream stops without it knows the simulation did not finish.
 //!
 //! A worker that dies stops being fed (its pipe breaks); one that takes no message for
 //! [`Feed::stall`] is cut off (it hangs: its own timeout will end it) so that the others go
@@ -24,28 +25,19 @@ use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use sim::camera::RgbdImage;
-use sim::sensors::{
-    GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, Message, RgbdFrame, ScanSide,
-    WheelOdometry,
-};
+use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
+
+use crate::dataset::{Assembler, ScanTiming, Topic, to_ros};
 
 /// Messages the simulation may run ahead of a worker (as in a worker's own simulation).
 pub const AHEAD: usize = 256;
 
-/// Tag of the frame that closes a complete stream.
-const END: u8 = 0;
-const GROUND_TRUTH: u8 = 1;
-const IMU: u8 = 2;
-const ODOMETRY: u8 = 3;
-const LIDAR: u8 = 4;
-const SCAN_FRONT: u8 = 5;
-const SCAN_BACK: u8 = 6;
-const RGBD: u8 = 7;
+/// Tag of the frame that closes a complete stream; any other tag is a topic's index in
+/// [`Topic::ALL`].
+const END: u8 = u8::MAX;
 
-/// Largest payload a reader accepts (a 4K RGB-D frame is about 60 MB).
+/// Largest payload a reader accepts (a 4K RGB-D frame's depth image is about 33 MB).
 const MAX_PAYLOAD: u64 = 1 << 30;
 
 /// Whether `sensors` includes the sensor of `message`.
@@ -75,126 +67,32 @@ pub fn union(sets: &[SensorSet]) -> SensorSet {
 // ---------------------------------------------------------------------------------------
 // Encoding
 
-#[derive(Default)]
-struct Out(Vec<u8>);
-
-impl Out {
-    fn i64(&mut self, v: i64) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn u64(&mut self, v: u64) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn f64(&mut self, v: f64) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn f32(&mut self, v: f32) {
-        self.0.extend_from_slice(&v.to_le_bytes());
-    }
-    fn vector(&mut self, v: &Vector3<f64>) {
-        v.iter().for_each(|&c| self.f64(c));
-    }
-    fn pose(&mut self, p: &Isometry3<f64>) {
-        self.vector(&p.translation.vector);
-        p.rotation.coords.iter().for_each(|&c| self.f64(c));
-    }
-    fn f32s(&mut self, v: &[f32]) {
-        self.u64(v.len() as u64);
-        self.0.reserve(4 * v.len());
-        v.iter().for_each(|&c| self.f32(c));
-    }
+fn frame(out: &mut Vec<u8>, tag: u8, ready_ns: i64, payload: &[u8]) {
+    out.reserve(17 + payload.len());
+    out.push(tag);
+    out.extend_from_slice(&ready_ns.to_le_bytes());
+    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+    out.extend_from_slice(payload);
 }
 
-/// One message as a frame of the wire format.
-pub fn encode(message: &Message) -> Vec<u8> {
-    let mut o = Out(Vec::with_capacity(64));
-    let tag = match message {
-        Message::GroundTruth(m) => {
-            o.i64(m.stamp_ns);
-            o.pose(&m.world_from_base);
-            o.vector(&m.velocity_in_world);
-            o.vector(&m.omega_in_base);
-            GROUND_TRUTH
-        }
-        Message::Imu(m) => {
-            o.i64(m.stamp_ns);
-            o.vector(&m.accel_mps2);
-            o.vector(&m.gyro_rps);
-            match m.orientation {
-                Some(q) => {
-                    o.i64(1);
-                    for v in [q.i, q.j, q.k, q.w] {
-                        o.f64(v);
-                    }
-                }
-                None => o.i64(0),
-            }
-            IMU
-        }
-        Message::WheelOdometry(m) => {
-            o.i64(m.stamp_ns);
-            o.f64(m.linear_mps);
-            o.f64(m.angular_rps);
-            o.pose(&m.odom_from_base);
-            ODOMETRY
-        }
-        Message::Lidar(m) => {
-            o.i64(m.stamp_ns);
-            o.i64(m.sweep_ns);
-            o.u64(m.points.len() as u64);
-            o.0.reserve(22 * m.points.len());
-            for p in &m.points {
-                [p.x, p.y, p.z, p.intensity, p.time_s]
-                    .iter()
-                    .for_each(|&c| o.f32(c));
-                o.0.extend_from_slice(&p.ring.to_le_bytes());
-            }
-            LIDAR
-        }
-        Message::Scan2d(m) => {
-            o.i64(m.stamp_ns);
-            [
-                m.angle_min_rad,
-                m.angle_increment_rad,
-                m.time_increment_s,
-                m.range_min_m,
-                m.range_max_m,
-            ]
+/// One message as the frames of its ROS 2 messages ([`crate::dataset::to_ros`]).
+pub fn encode(message: &Message, timing: &ScanTiming) -> Vec<u8> {
+    let mut out = Vec::new();
+    for (topic, ready_ns, data) in to_ros(message, timing) {
+        let tag = Topic::ALL
             .iter()
-            .for_each(|&c| o.f32(c));
-            o.f32s(&m.ranges_m);
-            o.f32s(&m.intensities);
-            match m.side {
-                ScanSide::Front => SCAN_FRONT,
-                ScanSide::Back => SCAN_BACK,
-            }
-        }
-        Message::Rgbd(m) => {
-            let image = &m.image;
-            o.i64(m.stamp_ns);
-            o.u64(image.width as u64);
-            o.u64(image.height as u64);
-            image.intrinsics.iter().for_each(|&c| o.f64(c));
-            o.u64(image.rgb.len() as u64);
-            o.0.extend_from_slice(&image.rgb);
-            o.f32s(&image.depth_m);
-            RGBD
-        }
-    };
-    frame(tag, &o.0)
-}
-
-fn frame(tag: u8, payload: &[u8]) -> Vec<u8> {
-    let mut f = Vec::with_capacity(9 + payload.len());
-    f.push(tag);
-    f.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-    f.extend_from_slice(payload);
-    f
+            .position(|&t| t == topic)
+            .expect("every topic is in Topic::ALL") as u8;
+        frame(&mut out, tag, ready_ns, &data);
+    }
+    out
 }
 
 /// The frame that closes a complete stream.
 pub fn end_frame() -> Vec<u8> {
-    frame(END, &[])
+    let mut out = Vec::new();
+    frame(&mut out, END, 0, &[]);
+    out
 }
 
 // ---------------------------------------------------------------------------------------
@@ -206,160 +104,9 @@ pub enum FeedError {
     #[error("the shared simulation stopped before the end of the route (no end mark)")]
     Truncated,
     #[error("malformed message from the shared simulation: {0}")]
-    Malformed(&'static str),
+    Malformed(String),
     #[error("reading the shared simulation: {0}")]
     Io(#[from] std::io::Error),
-}
-
-struct In<'a>(&'a [u8]);
-
-impl In<'_> {
-    fn take<const N: usize>(&mut self) -> Result<[u8; N], FeedError> {
-        let (head, rest) = self
-            .0
-            .split_first_chunk::<N>()
-            .ok_or(FeedError::Malformed("payload too short"))?;
-        self.0 = rest;
-        Ok(*head)
-    }
-    fn i64(&mut self) -> Result<i64, FeedError> {
-        self.take().map(i64::from_le_bytes)
-    }
-    fn len(&mut self, bytes_each: usize) -> Result<usize, FeedError> {
-        let n = u64::from_le_bytes(self.take()?);
-        if n.saturating_mul(bytes_each as u64) > self.0.len() as u64 {
-            return Err(FeedError::Malformed("length beyond the payload"));
-        }
-        Ok(n as usize)
-    }
-    fn f64(&mut self) -> Result<f64, FeedError> {
-        self.take().map(f64::from_le_bytes)
-    }
-    fn f32(&mut self) -> Result<f32, FeedError> {
-        self.take().map(f32::from_le_bytes)
-    }
-    fn vector(&mut self) -> Result<Vector3<f64>, FeedError> {
-        Ok(Vector3::new(self.f64()?, self.f64()?, self.f64()?))
-    }
-    fn pose(&mut self) -> Result<Isometry3<f64>, FeedError> {
-        let t = self.vector()?;
-        let (i, j, k, w) = (self.f64()?, self.f64()?, self.f64()?, self.f64()?);
-        // The sender's unit quaternion, bit for bit: no renormalisation.
-        Ok(Isometry3::from_parts(
-            Translation3::from(t),
-            UnitQuaternion::new_unchecked(Quaternion::new(w, i, j, k)),
-        ))
-    }
-    fn f32s(&mut self) -> Result<Vec<f32>, FeedError> {
-        let n = self.len(4)?;
-        let (bytes, rest) = self.0.split_at(4 * n);
-        self.0 = rest;
-        Ok(bytes
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect())
-    }
-    fn done(&self) -> Result<(), FeedError> {
-        if self.0.is_empty() {
-            Ok(())
-        } else {
-            Err(FeedError::Malformed("bytes left after the message"))
-        }
-    }
-}
-
-/// The message of one frame's tag and payload; `None` for the end mark.
-pub fn decode(tag: u8, payload: &[u8]) -> Result<Option<Message>, FeedError> {
-    let mut r = In(payload);
-    let message = match tag {
-        END => None,
-        GROUND_TRUTH => Some(Message::GroundTruth(GroundTruth {
-            stamp_ns: r.i64()?,
-            world_from_base: r.pose()?,
-            velocity_in_world: r.vector()?,
-            omega_in_base: r.vector()?,
-        })),
-        IMU => Some(Message::Imu(ImuSample {
-            stamp_ns: r.i64()?,
-            accel_mps2: r.vector()?,
-            gyro_rps: r.vector()?,
-            orientation: if r.i64()? == 1 {
-                let [x, y, z, w] = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
-                Some(UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)))
-            } else {
-                None
-            },
-        })),
-        ODOMETRY => Some(Message::WheelOdometry(WheelOdometry {
-            stamp_ns: r.i64()?,
-            linear_mps: r.f64()?,
-            angular_rps: r.f64()?,
-            odom_from_base: r.pose()?,
-        })),
-        LIDAR => {
-            let stamp_ns = r.i64()?;
-            let sweep_ns = r.i64()?;
-            let n = r.len(22)?;
-            let mut points = Vec::with_capacity(n);
-            for _ in 0..n {
-                points.push(LidarPoint {
-                    x: r.f32()?,
-                    y: r.f32()?,
-                    z: r.f32()?,
-                    intensity: r.f32()?,
-                    time_s: r.f32()?,
-                    ring: u16::from_le_bytes(r.take()?),
-                });
-            }
-            Some(Message::Lidar(LidarScan {
-                stamp_ns,
-                sweep_ns,
-                points,
-            }))
-        }
-        SCAN_FRONT | SCAN_BACK => Some(Message::Scan2d(LaserScan {
-            stamp_ns: r.i64()?,
-            side: if tag == SCAN_FRONT {
-                ScanSide::Front
-            } else {
-                ScanSide::Back
-            },
-            angle_min_rad: r.f32()?,
-            angle_increment_rad: r.f32()?,
-            time_increment_s: r.f32()?,
-            range_min_m: r.f32()?,
-            range_max_m: r.f32()?,
-            ranges_m: r.f32s()?,
-            intensities: r.f32s()?,
-        })),
-        RGBD => {
-            let stamp_ns = r.i64()?;
-            let width = r.len(0)?;
-            let height = r.len(0)?;
-            let intrinsics = [r.f64()?, r.f64()?, r.f64()?, r.f64()?];
-            let n = r.len(1)?;
-            let (rgb, rest) = r.0.split_at(n);
-            r.0 = rest;
-            let rgb = rgb.to_vec();
-            let depth_m = r.f32s()?;
-            if rgb.len() != 3 * width * height || depth_m.len() != width * height {
-                return Err(FeedError::Malformed("image size"));
-            }
-            Some(Message::Rgbd(RgbdFrame {
-                stamp_ns,
-                image: RgbdImage {
-                    width,
-                    height,
-                    rgb,
-                    depth_m,
-                    intrinsics,
-                },
-            }))
-        }
-        _ => return Err(FeedError::Malformed("unknown message kind")),
-    };
-    r.done()?;
-    Ok(message)
 }
 
 /// Reads a stream of frames (a worker's stdin) as messages. Ends at the end mark; an error
@@ -367,6 +114,7 @@ pub fn decode(tag: u8, payload: &[u8]) -> Result<Option<Message>, FeedError> {
 #[derive(Debug)]
 pub struct FeedReader<R: Read> {
     input: BufReader<R>,
+    assembler: Assembler,
     done: bool,
     error: Arc<Mutex<Option<FeedError>>>,
 }
@@ -375,6 +123,7 @@ impl<R: Read> FeedReader<R> {
     pub fn new(input: R) -> Self {
         Self {
             input: BufReader::with_capacity(1 << 20, input),
+            assembler: Assembler::default(),
             done: false,
             error: Arc::default(),
         }
@@ -385,26 +134,39 @@ impl<R: Read> FeedReader<R> {
         Arc::clone(&self.error)
     }
 
+    /// The next message; `None` at the end mark.
     fn next_frame(&mut self) -> Result<Option<Message>, FeedError> {
-        let mut head = [0u8; 9];
-        if let Err(e) = self.input.read_exact(&mut head) {
-            return Err(match e.kind() {
-                std::io::ErrorKind::UnexpectedEof => FeedError::Truncated,
-                _ => e.into(),
-            });
+        let truncated = |e: std::io::Error| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => FeedError::Truncated,
+            _ => e.into(),
+        };
+        loop {
+            let mut head = [0u8; 17];
+            self.input.read_exact(&mut head).map_err(truncated)?;
+            if head[0] == END {
+                return Ok(None);
+            }
+            let topic = *Topic::ALL
+                .get(usize::from(head[0]))
+                .ok_or_else(|| FeedError::Malformed(format!("unknown topic tag {}", head[0])))?;
+            let ready_ns = i64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
+            let len = u64::from_le_bytes(head[9..].try_into().expect("8 bytes"));
+            if len > MAX_PAYLOAD {
+                return Err(FeedError::Malformed(format!(
+                    "{} frame larger than 1 GiB",
+                    topic.name()
+                )));
+            }
+            let mut payload = vec![0u8; len as usize];
+            self.input.read_exact(&mut payload).map_err(truncated)?;
+            let message = self
+                .assembler
+                .push(topic, ready_ns, &payload)
+                .map_err(|e| FeedError::Malformed(format!("{}: {e}", topic.name())))?;
+            if message.is_some() {
+                return Ok(message);
+            }
         }
-        let len = u64::from_le_bytes(head[1..].try_into().expect("8 bytes"));
-        if len > MAX_PAYLOAD {
-            return Err(FeedError::Malformed("frame larger than 1 GiB"));
-        }
-        let mut payload = vec![0u8; len as usize];
-        self.input
-            .read_exact(&mut payload)
-            .map_err(|e| match e.kind() {
-                std::io::ErrorKind::UnexpectedEof => FeedError::Truncated,
-                _ => e.into(),
-            })?;
-        decode(head[0], &payload)
     }
 }
 
@@ -447,6 +209,8 @@ pub struct Subscriber<W: Write + Send> {
 pub struct Feed {
     /// Simulated time to stop at (the route limit), ns; `None`: the whole route.
     pub end_ns: Option<i64>,
+    /// The 2D scanners' timing, which their ROS messages carry.
+    pub scan_timing: ScanTiming,
     /// A worker that takes no message for this long is cut off.
     pub stall: Duration,
 }
@@ -576,7 +340,7 @@ impl Feed {
                 }
             });
             for message in sim_rx {
-                let frame = Arc::new(encode(&message));
+                let frame = Arc::new(encode(&message, &self.scan_timing));
                 self.offer(
                     lanes
                         .iter_mut()
@@ -664,6 +428,7 @@ mod tests {
     #[test]
     fn every_message_round_trips_exactly() {
         let config = sim::SimConfig::default();
+        let timing = ScanTiming::new(&config);
         let sim = Simulation::new(&config, "s1", 7).expect("s1");
         let mut kinds = std::collections::BTreeSet::new();
         for message in sim
@@ -671,25 +436,26 @@ mod tests {
             .take_while(|m| m.stamp_ns() < 150_000_000)
         {
             kinds.insert(message.sensor());
-            let bytes = encode(&message);
+            let bytes = encode(&message, &timing);
             let mut reader = FeedReader::new(&bytes[..]);
             let back = reader.next_frame().expect("decodes").expect("a message");
             assert_eq!(back, message, "{} changed on the wire", message.sensor());
             // Bitwise, not just ==: -0.0 and NaN payloads too.
-            assert_eq!(encode(&back), bytes);
+            assert_eq!(encode(&back, &timing), bytes);
         }
         assert_eq!(kinds.len(), 7, "every sensor seen: {kinds:?}");
     }
 
     #[test]
     fn a_stream_without_its_end_mark_is_an_error() {
-        let gt = Message::GroundTruth(GroundTruth {
+        let timing = ScanTiming::new(&sim::SimConfig::default());
+        let gt = Message::GroundTruth(sim::sensors::GroundTruth {
             stamp_ns: 5,
-            world_from_base: Isometry3::identity(),
-            velocity_in_world: Vector3::x(),
-            omega_in_base: Vector3::z(),
+            world_from_base: nalgebra::Isometry3::identity(),
+            velocity_in_world: nalgebra::Vector3::x(),
+            omega_in_base: nalgebra::Vector3::z(),
         });
-        let mut bytes = encode(&gt);
+        let mut bytes = encode(&gt, &timing);
         let mut reader = FeedReader::new(&bytes[..]);
         let slot = reader.error_slot();
         assert_eq!(reader.next(), Some(gt.clone()));
@@ -708,10 +474,20 @@ mod tests {
         let slot = reader.error_slot();
         assert_eq!(reader.by_ref().count(), 0);
         assert!(matches!(*slot.lock().unwrap(), Some(FeedError::Truncated)));
-        assert!(matches!(
-            decode(SCAN_FRONT, &[0u8; 40]),
-            Err(FeedError::Malformed(_))
-        ));
+
+        // A payload that is not its topic's message, and an unknown tag.
+        for (tag, payload) in [(5u8, vec![0u8; 40]), (200, vec![])] {
+            let mut bad = Vec::new();
+            frame(&mut bad, tag, 0, &payload);
+            let mut reader = FeedReader::new(&bad[..]);
+            let slot = reader.error_slot();
+            assert_eq!(reader.by_ref().count(), 0);
+            let error = slot.lock().unwrap().take().expect("an error").to_string();
+            assert!(
+                error.starts_with("malformed message from the shared simulation: "),
+                "{error}"
+            );
+        }
     }
 
     /// Each subscriber gets its own sensors only, in order, then the end mark; one that
@@ -738,6 +514,7 @@ mod tests {
         let feed = Feed {
             end_ns: Some(2_000_000_000),
             stall: Duration::from_secs(30),
+            scan_timing: ScanTiming::new(&config),
         };
         let readers = std::thread::spawn(move || {
             let a: Vec<Message> = FeedReader::new(a_read).collect();
@@ -807,6 +584,7 @@ mod tests {
             // 20 s of IMU and ground truth: more than a socket's buffer and a lane's queue.
             end_ns: Some(20_000_000_000),
             stall,
+            scan_timing: ScanTiming::new(&config),
         };
         let pipe = || std::os::unix::net::UnixStream::pair().expect("socket pair");
         let (healthy_write, healthy_read) = pipe();

@@ -51,20 +51,26 @@ pub enum Pace {
     Realtime,
 }
 
-/// File names inside a run folder.
-pub mod files {
-    pub const JOB: &str = "job.json";
-    pub const GROUNDTRUTH: &str = "groundtruth.tum";
-    pub const ESTIMATE: &str = "estimate.tum";
-    pub const ONLINE: &str = "online.tum";
-    pub const MAP: &str = "map.ply";
-    pub const GRID: &str = "grid.pgm";
-    pub const GRID_YAML: &str = "grid.yaml";
-    pub const EVENTS: &str = "events.json";
-    pub const TIMING: &str = "timing.json";
-    pub const METRICS: &str = "metrics.json";
-    /// Ground truth, aligned estimate, map and loops for Foxglove (`dataset::write_results`).
-    pub const RESULTS: &str = "results.mcap";
-    pub const LOG: &str = "worker.log";
-    pub const RUN: &str = "run.toml";
+/// A route limit must be a positive, finite number of seconds; the reason when not.
+pub fn check_max_time(seconds: f64) -> Result<(), &'static str> {
+    if seconds.is_finite() && seconds > 0.0 {
+        Ok(())
+    } else {
+        Err("must be a positive number of seconds")
+    }
+}
+
+/// A route limit in integer nanoseconds (to the nearest).
+pub fn max_time_ns(seconds: f64) -> i64 {
+    (seconds * 1e9).round() as i64
+}
+
+/// Where feeding a route of `duration_ns` stops, ns: its end, or the route limit
+/// `max_time_s` (checked) if that comes first.
+pub fn route_end_ns(duration_ns: i64, max_time_s: Option<f64>) -> anyhow::Result<i64> {
+    let Some(s) = max_time_s else {
+        return Ok(duration_ns);
+    };
+    check_max_time(s).map_err(|why| anyhow::anyhow!("max_time_s = {s}: {why}"))?;
+    Ok(duration_ns.min(max_time_ns(s)))
 }

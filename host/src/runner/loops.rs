@@ -21,34 +21,8 @@
 
 use eval::{LoopCounts, LoopCriteria, LoopJudgement, Trajectory};
 use plugin_api::{Event, EventKind};
-use serde::Serialize;
 
-/// One entry of `events.json`: the plugin's event as it sent it (`stamp_ns`, `kind`,
-/// `detail`, `loop_stamps_ns` when given) and, for an accepted loop that could be judged,
-/// `true_loop` with the ground-truth distance and heading difference it was judged on.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct JudgedEvent {
-    #[serde(flatten)]
-    pub event: Event,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub true_loop: Option<bool>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub gt_distance_m: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub gt_heading_deg: Option<f64>,
-    /// For a loop that carried its measured relative pose: that pose's error against
-    /// ground truth, metres and degrees.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub relative_error_m: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub relative_error_deg: Option<f64>,
-    /// For a loop judged by its correction: the online estimate's position error just
-    /// before and just after it, metres.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub error_before_m: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub error_after_m: Option<f64>,
-}
+use crate::results::JudgedEvent;
 
 /// The online estimate and the alignment that moves it into ground truth's frame, for
 /// loops judged by their correction.

@@ -1,12 +1,11 @@
 //! Runs a benchmark matrix: every (scenario, plugin) pair in its own worker process, as many
-//! at once as asked, each scored against ground truth; then the report. Results are written
-//! under a temporary name and moved into place when complete.
+//! at once as asked, each scored against ground truth as it ends. What a run leaves is its
+//! folder ([`crate::results::RunFolder`]); the commands hand those to the report or the sweep.
 
 mod evaluate;
 pub mod feed;
 pub mod job;
 mod loops;
-mod outputs;
 mod supervise;
 mod timing;
 pub mod worker;
@@ -19,14 +18,10 @@ use std::time::Duration;
 use anyhow::Context as _;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
-pub use evaluate::{Metrics, alignment_from_name, alignment_name, evaluate};
-pub use job::{Job, Pace, files};
-pub use outputs::{read_ply, write_grid};
+pub use evaluate::evaluate;
+pub use job::{Job, Pace, check_max_time, route_end_ns};
 
-use crate::report::{RunRecord, RunStatus, ScenarioTruth};
-
-/// Marks a folder as a vinebench results folder, so a rerun may replace it.
-const MARKER: &str = ".vinebench-results";
+use crate::results::{RunFolder, RunOutcome, RunStatus, files};
 
 /// One run of the matrix.
 #[derive(Debug, Clone)]
@@ -44,11 +39,9 @@ pub struct PlannedRun {
 /// A resolved matrix.
 #[derive(Debug, Clone)]
 pub struct Plan {
-    pub out: PathBuf,
     pub world: Option<PathBuf>,
     pub seed: u64,
     pub scenarios: Vec<String>,
-    pub labels: Vec<String>,
     pub runs: Vec<PlannedRun>,
     pub jobs: usize,
     pub timeout: Duration,
@@ -63,154 +56,46 @@ pub struct Plan {
     pub share_simulation: bool,
     /// Draw a progress bar per run on the terminal (a sweep draws its own instead).
     pub bars: bool,
-    /// The published table the bench reproduces, shown beside its figures.
-    pub paper_table: Option<PathBuf>,
 }
 
-/// Called as each run of a plan ends, with its index in `Plan::runs`, its record and its
-/// finished folder (evaluated, `job.json` removed), which the callee may move away.
-pub type OnDone<'a> = &'a (dyn Fn(usize, &RunRecord, &Path) + Sync);
+/// Called as each run of a plan ends, with its index in `Plan::runs` and its outcome (its
+/// folder evaluated, `job.json` removed), which the callee may move away.
+pub type OnDone<'a> = &'a (dyn Fn(usize, &RunOutcome) + Sync);
 
-/// What came out of a whole matrix.
-#[derive(Debug)]
-pub struct Executed {
-    pub dir: PathBuf,
-    pub table_markdown: String,
-    pub records: Vec<RunRecord>,
-}
-
-fn temp_sibling(out: &Path) -> PathBuf {
-    out.with_file_name(format!(".{}.tmp-{}", folder_name(out), std::process::id()))
-}
-
-/// The last component of a results folder's path (`results` if it has none).
-fn folder_name(out: &Path) -> String {
-    out.file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "results".into())
-}
-
-/// Runs the plan and writes its results folder.
-pub fn execute(plan: &Plan) -> anyhow::Result<Executed> {
-    if plan.out.exists()
-        && !plan.out.join(MARKER).exists()
-        && std::fs::read_dir(&plan.out)?.next().is_some()
-    {
-        anyhow::bail!(
-            "{} exists and is not a vinebench results folder; choose another --out",
-            plan.out.display()
-        );
-    }
+/// Runs the plan's runs in `work` (one folder per run, `work/<scenario>/<label>`, which
+/// must not exist yet), calling `on_done` as each run ends; returns every run's outcome in
+/// the plan's order.
+pub fn execute(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<RunOutcome>> {
     let config = sim::SimConfig::load(plan.world.as_deref())?;
-    let reference = plan
-        .paper_table
-        .as_deref()
-        .map(crate::report::reference::Reference::load)
-        .transpose()?;
-    // Check the scenarios before starting anything.
     for s in &plan.scenarios {
         if !config.scenarios.contains_key(s) {
             let known: Vec<&str> = config.scenarios.keys().map(String::as_str).collect();
-            anyhow::bail!("unknown scenario '{s}' (known: {})", known.join(", "));
+            anyhow::bail!(
+                "unknown scenario '{s}' in {} (known: {})",
+                plan.world.as_deref().map_or_else(
+                    || "the embedded world".to_owned(),
+                    |p| p.display().to_string()
+                ),
+                known.join(", ")
+            );
         }
-    }
-    let tmp = temp_sibling(&plan.out);
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp)?;
-    }
-    std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
-    let written = run_all(plan, &config, &tmp, &|_, _, _| {}).and_then(|(records, truths)| {
-        if let Some(path) = &plan.paper_table {
-            let copy = tmp.join(crate::report::reference::FILE);
-            std::fs::copy(path, &copy).with_context(|| copy.display().to_string())?;
-        }
-        let table = crate::report::write_reports(
-            &tmp,
-            &plan.scenarios,
-            &plan.labels,
-            &records,
-            &truths,
-            reference.as_ref(),
-        )?;
-        crate::report::html::write_bench_report(&tmp, &folder_name(&plan.out))?;
-        std::fs::File::create(tmp.join(MARKER))?;
-        Ok((records, table))
-    });
-    let (records, table) = match written {
-        Ok(v) => v,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(e);
-        }
-    };
-    if plan.out.exists() {
-        std::fs::remove_dir_all(&plan.out).with_context(|| plan.out.display().to_string())?;
-    }
-    std::fs::rename(&tmp, &plan.out).with_context(|| plan.out.display().to_string())?;
-    link_latest(&plan.out);
-    Ok(Executed {
-        dir: plan.out.clone(),
-        table_markdown: table,
-        records,
-    })
-}
-
-/// Runs the plan's runs in `work` (one folder per run, `work/<scenario>/<label>`, which
-/// must not exist yet) without writing any report, calling `on_done` as each run ends: the
-/// sweep's way in, which files every run on its own as soon as it is complete.
-pub fn execute_each(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<RunRecord>> {
-    let config = sim::SimConfig::load(plan.world.as_deref())?;
-    for s in &plan.scenarios {
-        anyhow::ensure!(
-            config.scenarios.contains_key(s),
-            "unknown scenario '{s}' in {}",
-            plan.world.as_deref().map_or_else(
-                || "the embedded world".to_owned(),
-                |p| p.display().to_string()
-            )
-        );
     }
     std::fs::create_dir_all(work).with_context(|| work.display().to_string())?;
-    run_all(plan, &config, work, on_done).map(|(records, _)| records)
-}
-
-/// Points `latest` beside the results folder at it (best effort: a missing link loses nothing).
-fn link_latest(out: &Path) {
-    let (Some(parent), Some(name)) = (out.parent(), out.file_name()) else {
-        return;
-    };
-    let link = parent.join("latest");
-    if link.is_symlink() {
-        let _ = std::fs::remove_file(&link);
-    }
-    if !link.exists() {
-        let _ = std::os::unix::fs::symlink(name, &link);
-    }
+    run_all(plan, &config, work, on_done)
 }
 
 fn run_all(
     plan: &Plan,
     config: &sim::SimConfig,
-    tmp: &Path,
+    work: &Path,
     on_done: OnDone,
-) -> anyhow::Result<(Vec<RunRecord>, Vec<ScenarioTruth>)> {
-    // Ground truth of each scenario for the plots: the trajectory alone is cheap.
+) -> anyhow::Result<Vec<RunOutcome>> {
+    // Route lengths (samples of 0.1 s up to the route's end or limit), longest first.
     let world = sim::world::World::from_config(config);
-    let mut truths = Vec::new();
+    let mut lengths = Vec::new();
     for s in &plan.scenarios {
         let sim = sim::Simulation::with_world(config, world.clone(), s, plan.seed)?;
-        let step = 100_000_000;
-        let end_ns = worker::end_ns(sim.duration_ns(), plan.max_time_s)?;
-        let xy = (0..=end_ns / step)
-            .map(|k| {
-                let p = sim.trajectory.pose(k * step).translation.vector;
-                (p.x, p.y)
-            })
-            .collect();
-        truths.push(ScenarioTruth {
-            scenario: s.clone(),
-            groundtruth_xy: xy,
-        });
+        lengths.push(route_end_ns(sim.duration_ns(), plan.max_time_s)? / 100_000_000 + 1);
     }
 
     let bars = if plan.bars {
@@ -221,11 +106,6 @@ fn run_all(
     let style = ProgressStyle::with_template("{prefix:>28} [{bar:30}] {percent:>3}% {msg}")
         .expect("valid template")
         .progress_chars("=> ");
-    // Route lengths in samples of the ground truth above (one per 0.1 s).
-    let lengths: Vec<i64> = truths
-        .iter()
-        .map(|t| t.groundtruth_xy.len() as i64)
-        .collect();
     let groups = group_runs(plan, &lengths);
     let mut fed = vec![false; plan.runs.len()];
     for g in groups.iter().filter(|g| g.shared) {
@@ -234,7 +114,7 @@ fn run_all(
     let mut dirs = Vec::with_capacity(plan.runs.len());
     let mut progress = Vec::with_capacity(plan.runs.len());
     for (i, run) in plan.runs.iter().enumerate() {
-        let dir = std::path::absolute(tmp.join(&run.scenario).join(&run.label))?;
+        let dir = std::path::absolute(work.join(&run.scenario).join(&run.label))?;
         std::fs::create_dir_all(&dir)?;
         let job = Job {
             scenario: run.scenario.clone(),
@@ -250,7 +130,7 @@ fn run_all(
             fed: fed[i],
             pace: run.pace,
         };
-        worker::write_json(&dir.join(files::JOB), &job)?;
+        crate::results::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));
         bar.set_prefix(format!("{}/{}", run.scenario, run.label));
         dirs.push(dir);
@@ -260,7 +140,7 @@ fn run_all(
     // Groups start in order as soon as enough of the `jobs` slots are free (a group with
     // more runs than `jobs` takes them all); a group gives a slot back whenever it has fewer
     // runs left than it holds slots.
-    let records: Mutex<Vec<Option<RunRecord>>> = Mutex::new(vec![None; plan.runs.len()]);
+    let outcomes: Mutex<Vec<Option<RunOutcome>>> = Mutex::new(vec![None; plan.runs.len()]);
     let free = (Mutex::new(plan.jobs.max(1)), Condvar::new());
     let release = || {
         *free.0.lock().expect("no panics while holding the lock") += 1;
@@ -279,19 +159,19 @@ fn run_all(
             }
             *slots -= need;
             drop(slots);
-            let (dirs, progress, records, release) = (&dirs, &progress, &records, &release);
+            let (dirs, progress, outcomes, release) = (&dirs, &progress, &outcomes, &release);
             scope.spawn(move || {
                 let left = Mutex::new(group.runs.len());
-                let done = |i: usize, record: RunRecord| {
+                let done = |i: usize, outcome: RunOutcome| {
                     let bar = &progress[i];
-                    match &record.status {
+                    match &outcome.status {
                         RunStatus::Ok => bar.finish_with_message("ok"),
                         RunStatus::Failed(why) => {
                             bar.abandon_with_message(format!("failed: {why}"))
                         }
                     }
-                    on_done(i, &record, &dirs[i]);
-                    records.lock().expect("no panics while holding the lock")[i] = Some(record);
+                    on_done(i, &outcome);
+                    outcomes.lock().expect("no panics while holding the lock")[i] = Some(outcome);
                     let mut left = left.lock().expect("no panics while holding the lock");
                     *left -= 1;
                     if *left < need {
@@ -302,20 +182,19 @@ fn run_all(
                     run_shared(group, plan, config, world, dirs, progress, &done);
                 } else {
                     for &i in &group.runs {
-                        let record = run_one(&plan.runs[i], &dirs[i], plan, &progress[i]);
-                        done(i, record);
+                        let outcome = run_one(&plan.runs[i], &dirs[i], plan, &progress[i]);
+                        done(i, outcome);
                     }
                 }
             });
         }
     });
-    let records = records
+    Ok(outcomes
         .into_inner()
         .expect("no panics while holding the lock")
         .into_iter()
         .map(|r| r.expect("every run was taken"))
-        .collect();
-    Ok((records, truths))
+        .collect())
 }
 
 /// Runs that are started together; `shared`: fed by one simulation in this process.
@@ -454,7 +333,7 @@ fn run_shared(
     world: &sim::world::World,
     dirs: &[PathBuf],
     progress: &[ProgressBar],
-    done: &(dyn Fn(usize, RunRecord) + Sync),
+    done: &(dyn Fn(usize, RunOutcome) + Sync),
 ) {
     let scenario = &plan.runs[group.runs[0]].scenario;
     // Start every worker; one that cannot start fails alone.
@@ -481,11 +360,16 @@ fn run_shared(
         }
     }
     let simulation = sim::Simulation::with_world(config, world.clone(), scenario, plan.seed);
-    let end_ns = plan.max_time_s.map(|s| (s * 1e9).round() as i64);
+    let end_ns = plan.max_time_s.map(job::max_time_ns);
     let stall = STALL.min(plan.timeout / 4);
     std::thread::scope(|scope| {
         let feeding = scope.spawn(move || match simulation {
-            Ok(sim) => feed::Feed { end_ns, stall }.run(&sim, subscribers),
+            Ok(sim) => feed::Feed {
+                end_ns,
+                stall,
+                scan_timing: crate::dataset::ScanTiming::new(config),
+            }
+            .run(&sim, subscribers),
             Err(e) => Err(format!("{e}")),
         });
         let watched: Vec<_> = started
@@ -531,7 +415,7 @@ fn run_shared(
     });
 }
 
-fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunRecord {
+fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunOutcome {
     let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
     let outcome = supervise::supervise(
         dir,
@@ -543,41 +427,27 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunR
     finish_run(run, dir, plan, outcome)
 }
 
-/// A run's record once its worker has ended: scored if it succeeded.
-fn finish_run(run: &PlannedRun, dir: &Path, plan: &Plan, outcome: Result<(), String>) -> RunRecord {
-    let failed = |why: String| RunRecord {
-        scenario: run.scenario.clone(),
-        plugin: run.label.clone(),
-        status: RunStatus::Failed(why),
-        ape: None,
-        realtime_factor: None,
-        loops: None,
-        estimate_xy: Vec::new(),
-        max_time_s: plan.max_time_s,
-    };
+/// A run's outcome once its worker has ended: scored if it succeeded.
+fn finish_run(
+    run: &PlannedRun,
+    dir: &Path,
+    plan: &Plan,
+    outcome: Result<(), String>,
+) -> RunOutcome {
+    let folder = RunFolder::new(dir);
     // The order held a temporary path; run.toml keeps what determined the run.
-    let _ = std::fs::remove_file(dir.join(files::JOB));
-    if let Err(why) = outcome {
-        return failed(why);
-    }
-    let scored = match evaluate(dir, plan.alignment) {
-        Ok(s) => s,
-        Err(e) => return failed(format!("evaluation: {e:#}")),
+    let _ = std::fs::remove_file(folder.path(files::JOB));
+    let status = match outcome
+        .and_then(|()| evaluate(&folder, plan.alignment).map_err(|e| format!("evaluation: {e:#}")))
+    {
+        Ok(()) => RunStatus::Ok,
+        Err(why) => RunStatus::Failed(why),
     };
-    let realtime_factor = std::fs::read_to_string(dir.join(files::TIMING))
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        // The system's own speed: a shared simulation sets the pace of its whole group,
-        // and the simulator's time is not the system's.
-        .and_then(|v| v["realtime_factor_plugin"].as_f64());
-    RunRecord {
+    RunOutcome {
         scenario: run.scenario.clone(),
-        plugin: run.label.clone(),
-        status: RunStatus::Ok,
-        ape: Some(scored.metrics.ape),
-        realtime_factor,
-        loops: Some(scored.metrics.loops),
-        estimate_xy: scored.estimate_xy,
+        label: run.label.clone(),
+        status,
         max_time_s: plan.max_time_s,
+        folder,
     }
 }

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::job::files;
+use crate::results::files;
 
 /// How often the child is checked on.
 const POLL: Duration = Duration::from_millis(20);

@@ -4,41 +4,12 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use serde::Serialize;
+use crate::results::{Latency, Timing as TimingReport};
 
 /// Call durations per message kind.
 #[derive(Debug, Default)]
 pub struct Timing {
     calls: BTreeMap<&'static str, Vec<u64>>,
-}
-
-/// Latency percentiles of one kind of call, milliseconds.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Latency {
-    pub calls: usize,
-    pub p50_ms: f64,
-    pub p90_ms: f64,
-    pub p99_ms: f64,
-    pub max_ms: f64,
-    pub total_s: f64,
-}
-
-/// timing.json.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TimingReport {
-    /// Where the messages came from: `simulation` (the worker's own), `shared simulation`
-    /// (the supervisor's, streamed to several workers) or `dataset`.
-    pub source: &'static str,
-    pub simulated_s: f64,
-    pub wall_s: f64,
-    pub plugin_s: f64,
-    pub cpu_s: Option<f64>,
-    pub peak_rss_mb: Option<f64>,
-    /// Simulated seconds per wall second, simulator included.
-    pub realtime_factor: f64,
-    /// Simulated seconds per second spent inside the plugin.
-    pub realtime_factor_plugin: f64,
-    pub latency: BTreeMap<&'static str, Latency>,
 }
 
 /// The `q`-quantile of sorted values (nearest rank).
@@ -71,7 +42,7 @@ impl Timing {
             plugin_ns += total;
             let ms = |ns: u64| ns as f64 * 1e-6;
             latency.insert(
-                kind,
+                kind.to_owned(),
                 Latency {
                     calls: sorted.len(),
                     p50_ms: ms(quantile(&sorted, 0.5)),
@@ -84,7 +55,7 @@ impl Timing {
         }
         let plugin_s = plugin_ns as f64 * 1e-9;
         TimingReport {
-            source: "simulation",
+            source: "simulation".to_owned(),
             simulated_s,
             wall_s,
             plugin_s,

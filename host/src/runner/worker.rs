@@ -16,8 +16,9 @@ use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
 
 use super::feed::{AHEAD, FeedReader};
-use super::job::{Job, Pace, files};
+use super::job::{Job, Pace};
 use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
+use crate::results::{RunFolder, files};
 
 /// Which sensors to simulate for a plugin's requirements (ground truth always).
 pub fn sensor_set(kinds: &[SensorKind]) -> SensorSet {
@@ -85,7 +86,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         .create(&job.params_toml, &rig)
         .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
 
-    let total_ns = end_ns(sim.duration_ns(), job.max_time_s)?;
+    let total_ns = super::job::route_end_ns(sim.duration_ns(), job.max_time_s)?;
     let mut groundtruth = Vec::new();
     let mut online = Vec::new();
     let mut timing = Timing::default();
@@ -174,19 +175,11 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         (Some(_), _) => "dataset",
         (None, true) => "shared simulation",
         (None, false) => "simulation",
-    };
-    write_json(&job.out_dir.join(files::TIMING), &report)?;
+    }
+    .to_owned();
+    RunFolder::new(&job.out_dir).write_timing(&report)?;
     writeln!(stdout, "progress {total_ns} {total_ns}").ok();
     Ok(())
-}
-
-/// Where feeding stops, ns: the route's end, or the route limit if that comes first.
-pub(super) fn end_ns(duration_ns: i64, max_time_s: Option<f64>) -> anyhow::Result<i64> {
-    let Some(s) = max_time_s else {
-        return Ok(duration_ns);
-    };
-    crate::bench_config::check_max_time(s).map_err(|why| anyhow!("max_time_s = {s}: {why}"))?;
-    Ok(duration_ns.min((s * 1e9).round() as i64))
 }
 
 /// A simulated lidar point as plugins receive it.
@@ -287,12 +280,12 @@ fn write_outputs(
         eval::write_tum(dir.join(files::ONLINE), &trajectory(online))?;
     }
     if let Some(map) = &output.map {
-        super::outputs::write_ply(&dir.join(files::MAP), map)?;
+        crate::results::write_ply(&dir.join(files::MAP), map)?;
     }
     if let Some(grid) = &output.grid {
-        super::outputs::write_grid(&dir.join(files::GRID), &dir.join(files::GRID_YAML), grid)?;
+        crate::results::write_grid(&dir.join(files::GRID), &dir.join(files::GRID_YAML), grid)?;
     }
-    write_json(&dir.join(files::EVENTS), &output.events)?;
+    RunFolder::new(dir).write_events(&output.events)?;
     Ok(())
 }
 
@@ -343,9 +336,4 @@ fn write_run_toml(
     put("plugin", toml::Value::Table(p));
     let path = job.out_dir.join(files::RUN);
     std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())
-}
-
-pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").with_context(|| path.display().to_string())
 }

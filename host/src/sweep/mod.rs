@@ -22,7 +22,6 @@ pub mod aggregate;
 pub mod slurm;
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -31,16 +30,8 @@ use serde::{Deserialize, Serialize};
 use sha2::Digest as _;
 
 use crate::bench_config::BenchConfig;
-use crate::report::{RunRecord, RunStatus};
+use crate::results::{RunOutcome, RunStatus, SWEEP_MARKER as MARKER, write_atomic};
 use crate::runner::{Plan, PlannedRun};
-
-/// Marks a folder as a sweep folder, so a sweep may resume in it.
-const MARKER: &str = ".vinebench-sweep";
-
-/// Whether `dir` is a sweep's folder (it has the sweep's marker file).
-pub fn is_sweep_folder(dir: &Path) -> bool {
-    dir.join(MARKER).exists()
-}
 
 /// One axis: a world key by its dotted path and the values it takes.
 #[derive(Debug, Clone, PartialEq)]
@@ -369,21 +360,15 @@ impl Sweep {
             .into_iter()
             .map(|((world, seed), cells)| {
                 let mut scenarios: Vec<String> = Vec::new();
-                let mut labels: Vec<String> = Vec::new();
                 for c in &cells {
                     if !scenarios.contains(&c.scenario) {
                         scenarios.push(c.scenario.clone());
                     }
-                    if !labels.contains(&c.label) {
-                        labels.push(c.label.clone());
-                    }
                 }
                 let plan = Plan {
-                    out: out.to_owned(),
                     world: Some(out.join("worlds").join(format!("{world}.toml"))),
                     seed,
                     scenarios,
-                    labels,
                     runs: cells
                         .iter()
                         .map(|c| PlannedRun {
@@ -403,7 +388,6 @@ impl Sweep {
                     max_time_s: self.cfg.max_time_s,
                     share_simulation: self.cfg.share_simulation,
                     bars: false,
-                    paper_table: None,
                 };
                 (plan, cells)
             })
@@ -414,21 +398,6 @@ impl Sweep {
 /// Where a cell's finished run lives.
 pub fn run_dir(out: &Path, key: &str) -> PathBuf {
     out.join("runs").join(key)
-}
-
-/// Writes a file under a temporary name and renames it into place.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let tmp = path.with_file_name(format!(
-        ".{}.tmp-{}",
-        path.file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-        std::process::id()
-    ));
-    let mut f = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
-    f.write_all(bytes)
-        .and_then(|()| f.sync_all())
-        .with_context(|| tmp.display().to_string())?;
-    std::fs::rename(&tmp, path).with_context(|| path.display().to_string())
 }
 
 /// Work folders are named `<host>-<pid>-...`; those of this host whose process is gone
@@ -472,16 +441,12 @@ pub fn file_run(
     out: &Path,
     cell: &Cell,
     build: &str,
-    record: &RunRecord,
+    status: &RunStatus,
     dir: &Path,
 ) -> anyhow::Result<()> {
-    let status = match &record.status {
-        RunStatus::Ok => "ok".to_owned(),
-        RunStatus::Failed(why) => format!("failed: {why}"),
-    };
     let filed = Filed {
         cell: cell.clone(),
-        status,
+        status: status.text(),
         build: build.to_owned(),
     };
     let json = serde_json::to_string_pretty(&filed)? + "\n";
@@ -503,28 +468,40 @@ pub fn read_filed(dir: &Path) -> anyhow::Result<Filed> {
 }
 
 /// Runs `cells` here, `jobs` at once, filing each run as it ends; `on_filed` is called after
-/// each (for progress).
+/// each with its outcome, its folder where it was filed (for progress).
 pub fn run_local(
     sweep: &Sweep,
     out: &Path,
     cells: &[&Cell],
     jobs: usize,
-    on_filed: &(dyn Fn(&Cell, &RunRecord) + Sync),
+    on_filed: &(dyn Fn(&Cell, &RunOutcome) + Sync),
 ) -> anyhow::Result<()> {
     let failures = std::sync::Mutex::new(Vec::new());
     for (n, (plan, group)) in sweep.plans(out, cells, jobs).into_iter().enumerate() {
         let work = work_dir(out, &n.to_string());
-        let filed = |i: usize, record: &RunRecord, dir: &Path| {
+        let filed = |i: usize, outcome: &RunOutcome| {
             let cell = &group[i];
-            match file_run(out, cell, &sweep.exe_hash, record, dir) {
-                Ok(()) => on_filed(cell, record),
+            match file_run(
+                out,
+                cell,
+                &sweep.exe_hash,
+                &outcome.status,
+                &outcome.folder.dir,
+            ) {
+                Ok(()) => on_filed(
+                    cell,
+                    &RunOutcome {
+                        folder: crate::results::RunFolder::new(run_dir(out, &cell.key)),
+                        ..outcome.clone()
+                    },
+                ),
                 Err(e) => failures
                     .lock()
                     .expect("no panics while holding the lock")
                     .push(format!("{e:#}")),
             }
         };
-        crate::runner::execute_each(&plan, &work, &filed)?;
+        crate::runner::execute(&plan, &work, &filed)?;
         std::fs::remove_dir_all(&work).with_context(|| work.display().to_string())?;
         let failures = failures.lock().expect("no panics while holding the lock");
         if let Some(first) = failures.first() {

@@ -16,7 +16,8 @@ use std::time::Duration;
 use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
 
-use super::{Cell, Sweep, file_run, run_dir, work_dir, write_atomic};
+use super::{Cell, Sweep, file_run, run_dir, work_dir};
+use crate::results::{RunStatus, write_atomic};
 use crate::runner::{Plan, PlannedRun};
 
 /// Slurm's default `MaxArraySize` is 1001: arrays of at most 1000 tasks.
@@ -202,11 +203,9 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         return Ok(());
     }
     let plan = Plan {
-        out: out.clone(),
         world: Some(out.join("worlds").join(format!("{}.toml", cell.world))),
         seed: cell.seed,
         scenarios: vec![cell.scenario.clone()],
-        labels: vec![cell.label.clone()],
         runs: vec![PlannedRun {
             scenario: cell.scenario.clone(),
             label: cell.label.clone(),
@@ -223,21 +222,25 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         max_time_s: tasks.max_time_s,
         share_simulation: false,
         bars: false,
-        paper_table: None,
     };
     let job = std::env::var("SLURM_ARRAY_JOB_ID").unwrap_or_else(|_| "task".into());
     let work = work_dir(out, &format!("slurm-{job}-{index}"));
     let filing = std::sync::Mutex::new(Ok(()));
-    let records = crate::runner::execute_each(&plan, &work, &|_, record, dir| {
-        *filing.lock().expect("no panics while holding the lock") =
-            file_run(out, cell, &tasks.exe_hash, record, dir);
+    let outcomes = crate::runner::execute(&plan, &work, &|_, outcome| {
+        *filing.lock().expect("no panics while holding the lock") = file_run(
+            out,
+            cell,
+            &tasks.exe_hash,
+            &outcome.status,
+            &outcome.folder.dir,
+        );
     })?;
     filing
         .into_inner()
         .expect("no panics while holding the lock")?;
     let _ = std::fs::remove_dir_all(&work);
-    match records.first().map(|r| &r.status) {
-        Some(crate::report::RunStatus::Failed(why)) => {
+    match outcomes.first().map(|r| &r.status) {
+        Some(RunStatus::Failed(why)) => {
             println!("{}: failed: {why}", cell.describe())
         }
         _ => println!("{}: ok", cell.describe()),

@@ -270,12 +270,17 @@ fn our_worlds_bench_prints_the_table_for_s0_to_s3() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("paper");
     let stdout = shipped_bench_cut("configs/vinebench.toml", &out);
-    let header = stdout
-        .lines()
-        .find(|l| l.contains("s0"))
-        .unwrap_or_default();
+    // table.md: one table under a two-level header; the terminal: one block per scenario.
+    let md = std::fs::read_to_string(out.join("table.md")).expect("table.md");
+    let header = md.lines().next().unwrap_or_default();
     for s in ["s0", "s1", "s2", "s3"] {
-        assert!(header.contains(s), "table header lacks {s}:\n{stdout}");
+        assert!(header.contains(s), "table header lacks {s}:\n{md}");
+        assert!(
+            stdout
+                .lines()
+                .any(|l| l.starts_with(&format!("| {s} ")) && l.contains("lio-sam")),
+            "no block headed {s} above its systems:\n{stdout}"
+        );
     }
     assert!(
         stdout.contains(&format!(
@@ -436,16 +441,27 @@ fn paper_bench_runs_on_the_papers_world_beside_its_table() {
         );
     }
     let md = std::fs::read_to_string(out.join("table.md")).expect("table.md");
-    for text in [&stdout, &md] {
+    let paper_rmse = |text: &str, k: usize| -> Vec<String> {
         let row = text
             .lines()
-            .find(|l| l.trim_start_matches('|').trim().starts_with("paper rmse"))
-            .unwrap_or_else(|| panic!("a paper rmse row in\n{text}"));
-        let cells: Vec<&str> = row.trim_matches('|').split('|').map(str::trim).collect();
-        // Columns: s0..s3 by six systems each; orbslam2 is the fifth of s3's.
-        assert_eq!(cells.len(), 1 + 4 * labels.len(), "{row}");
-        assert_eq!(cells[1 + 3 * labels.len() + 4], "5.22", "{row}");
-        assert_eq!(cells[1], "", "no paper figure for a baseline: {row}");
+            .filter(|l| l.trim_start_matches('|').trim().starts_with("paper rmse"))
+            .nth(k)
+            .unwrap_or_else(|| panic!("paper rmse row {k} in\n{text}"));
+        row.trim_matches('|')
+            .split('|')
+            .map(|c| c.trim().to_owned())
+            .collect()
+    };
+    // table.md: columns s0..s3 by six systems each; orbslam2 is the fifth of s3's.
+    let cells = paper_rmse(&md, 0);
+    assert_eq!(cells.len(), 1 + 4 * labels.len(), "{cells:?}");
+    assert_eq!(cells[1 + 3 * labels.len() + 4], "5.22", "{cells:?}");
+    assert_eq!(cells[1], "", "no paper figure for a baseline: {cells:?}");
+    // The terminal: one block per scenario, s3's the fourth.
+    let cells = paper_rmse(&stdout, 3);
+    assert_eq!(cells.len(), 1 + labels.len(), "{cells:?}");
+    assert_eq!(cells[1 + 4], "5.22", "{cells:?}");
+    for text in [&stdout, &md] {
         assert!(text.contains("Hroob et al. 2021, Table 2"), "{text}");
     }
     assert!(

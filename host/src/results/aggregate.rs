@@ -1,0 +1,99 @@
+//! A sweep's aggregate (`sweep.json`): per cell without the seed (scenario, system, point of
+//! the axes), the number of runs ok / failed / missing and mean ± std, min and max of ATE
+//! RMSE, accepted and false loops, and (kept apart, as they depend on the machine) real-time
+//! factor, CPU time and peak memory. `sweep::aggregate::collect` makes it from the runs'
+//! folders; `report::sweep` writes and reads its files.
+//!
+//! Standard deviations are the sample's (n − 1 in the denominator), absent for n < 2.
+
+use serde::{Deserialize, Serialize};
+
+/// mean ± std, min, max of some numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub mean: f64,
+    pub std: Option<f64>,
+    pub min: f64,
+    pub max: f64,
+}
+
+/// The summary of `xs` (in the given order, so sums are reproducible); `None` if empty.
+pub fn summarize(xs: &[f64]) -> Option<Summary> {
+    if xs.is_empty() {
+        return None;
+    }
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let std = (xs.len() > 1)
+        .then(|| (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt());
+    Some(Summary {
+        mean,
+        std,
+        min: xs.iter().copied().fold(f64::INFINITY, f64::min),
+        max: xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    })
+}
+
+/// One row of the aggregate.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Row {
+    pub scenario: String,
+    pub system: String,
+    /// The value of every axis, as TOML text, in axis order.
+    pub axes: Vec<(String, String)>,
+    pub n_ok: usize,
+    pub n_failed: usize,
+    /// Runs not (yet) in `runs/`.
+    pub n_missing: usize,
+    pub ate_rmse_m: Option<Summary>,
+    pub loops_accepted: Option<Summary>,
+    pub loops_false: Option<Summary>,
+    /// `seed: reason` of each failed run.
+    pub failures: Vec<String>,
+    #[serde(skip)]
+    pub speed: Speed,
+}
+
+/// What depends on the machine: kept out of `sweep.json` and `sweep.csv`.
+#[derive(Debug, Clone, Default)]
+pub struct Speed {
+    pub realtime_factor: Option<Summary>,
+    pub cpu_s: Option<Summary>,
+    pub peak_rss_mb: Option<Summary>,
+}
+
+/// The aggregate of a sweep.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Aggregate {
+    pub scenarios: Vec<String>,
+    pub systems: Vec<String>,
+    pub seeds: Vec<u64>,
+    /// Every axis with its values as TOML text.
+    pub axes: Vec<(String, Vec<String>)>,
+    pub rows: Vec<Row>,
+    /// Hashes of the `vinebench` builds that made the runs found, sorted.
+    pub builds: Vec<String>,
+}
+
+impl Aggregate {
+    /// Runs not in `runs/` yet, over all rows.
+    pub fn missing(&self) -> usize {
+        self.rows.iter().map(|r| r.n_missing).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summaries_use_the_sample_deviation() {
+        let s = summarize(&[1.0, 2.0, 3.0, 4.0]).expect("four numbers");
+        assert_eq!(s.mean, 2.5);
+        assert!((s.std.expect("n > 1") - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
+        assert_eq!((s.min, s.max), (1.0, 4.0));
+        let one = summarize(&[0.7]).expect("one number");
+        assert_eq!((one.mean, one.std, one.min, one.max), (0.7, None, 0.7, 0.7));
+        assert_eq!(summarize(&[]), None);
+    }
+}

@@ -1,0 +1,164 @@
+//! A results folder (a bench's, a run's) is written under a temporary name beside its target
+//! and moved into place in one `rename` when complete, so an interrupted or failed bench never
+//! leaves half-written results; a marker file says a folder is vinebench's, so a rerun may
+//! replace it and nothing else is ever removed.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+
+/// Marks a folder as a vinebench results folder, so a rerun may replace it.
+pub const MARKER: &str = ".vinebench-results";
+/// Marks a folder as a sweep folder, so a sweep may resume in it.
+pub const SWEEP_MARKER: &str = ".vinebench-sweep";
+
+/// Whether `dir` is a sweep's folder (it has the sweep's marker file).
+pub fn is_sweep_folder(dir: &Path) -> bool {
+    dir.join(SWEEP_MARKER).exists()
+}
+
+/// A results folder being written: [`Staging::dir`] until [`Staging::commit`] moves it to
+/// its target; dropped uncommitted, it is removed.
+#[derive(Debug)]
+pub struct Staging {
+    target: PathBuf,
+    tmp: PathBuf,
+    committed: bool,
+}
+
+/// The last component of a results folder's path (`results` if it has none).
+pub fn folder_name(out: &Path) -> String {
+    out.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "results".into())
+}
+
+impl Staging {
+    /// Starts writing `target`, which must be absent, empty or a vinebench results folder.
+    pub fn begin(target: &Path) -> anyhow::Result<Self> {
+        if target.exists()
+            && !target.join(MARKER).exists()
+            && std::fs::read_dir(target)
+                .with_context(|| target.display().to_string())?
+                .next()
+                .is_some()
+        {
+            anyhow::bail!(
+                "{} exists and is not a vinebench results folder; choose another --out",
+                target.display()
+            );
+        }
+        let tmp = target.with_file_name(format!(
+            ".{}.tmp-{}",
+            folder_name(target),
+            std::process::id()
+        ));
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
+        }
+        std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
+        Ok(Self {
+            target: target.to_owned(),
+            tmp,
+            committed: false,
+        })
+    }
+
+    /// Where the folder is being written.
+    pub fn dir(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The folder's final path.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Marks the folder, replaces the target with it and points `latest` beside it at it.
+    pub fn commit(mut self) -> anyhow::Result<PathBuf> {
+        std::fs::File::create(self.tmp.join(MARKER))
+            .with_context(|| self.tmp.join(MARKER).display().to_string())?;
+        if self.target.exists() {
+            std::fs::remove_dir_all(&self.target)
+                .with_context(|| self.target.display().to_string())?;
+        }
+        std::fs::rename(&self.tmp, &self.target)
+            .with_context(|| self.target.display().to_string())?;
+        self.committed = true;
+        link_latest(&self.target);
+        Ok(self.target.clone())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.tmp);
+        }
+    }
+}
+
+/// Points `latest` beside the results folder at it (best effort: a missing link loses nothing).
+pub fn link_latest(out: &Path) {
+    let (Some(parent), Some(name)) = (out.parent(), out.file_name()) else {
+        return;
+    };
+    let link = parent.join("latest");
+    if link.is_symlink() {
+        let _ = std::fs::remove_file(&link);
+    }
+    if !link.exists() {
+        let _ = std::os::unix::fs::symlink(name, &link);
+    }
+}
+
+/// Writes a file under a temporary name and renames it into place.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp-{}",
+        path.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        std::process::id()
+    ));
+    let mut f = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
+    f.write_all(bytes)
+        .and_then(|()| f.sync_all())
+        .with_context(|| tmp.display().to_string())?;
+    std::fs::rename(&tmp, path).with_context(|| path.display().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_folder_appears_whole_or_not_at_all_and_only_vinebench_folders_are_replaced() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("bench");
+        {
+            let staging = Staging::begin(&target).expect("begin");
+            std::fs::write(staging.dir().join("a"), "1").expect("write");
+            // Dropped without commit: nothing appears, nothing is left.
+        }
+        assert!(!target.exists());
+        assert_eq!(std::fs::read_dir(root.path()).expect("list").count(), 0);
+        let staging = Staging::begin(&target).expect("begin");
+        std::fs::write(staging.dir().join("a"), "2").expect("write");
+        assert_eq!(staging.commit().expect("commit"), target);
+        assert_eq!(std::fs::read_to_string(target.join("a")).expect("a"), "2");
+        assert!(target.join(MARKER).exists());
+        assert!(root.path().join("latest").is_symlink());
+        // A rerun replaces its own folder; a foreign folder is refused, named.
+        Staging::begin(&target)
+            .expect("a vinebench folder")
+            .commit()
+            .expect("commit");
+        assert!(!target.join("a").exists());
+        let foreign = root.path().join("thesis");
+        std::fs::create_dir(&foreign).expect("mkdir");
+        std::fs::write(foreign.join("chapter.tex"), "x").expect("write");
+        let err = Staging::begin(&foreign).expect_err("foreign").to_string();
+        assert!(err.contains("thesis") && err.contains("not a vinebench results folder"));
+    }
+}

@@ -1,0 +1,50 @@
+//! The results on disk, as one typed model that the runner writes and evaluation, report and
+//! sweep read: a run's folder ([`RunFolder`]: every file it holds, named in [`files`]), how a
+//! run ended ([`RunStatus`], [`RunOutcome`]), a results folder written whole or not at all
+//! ([`Staging`]), and a sweep's aggregate ([`aggregate`]).
+//!
+//! A run's folder, in the order its files are written:
+//! - by the worker: `run.toml` (everything that determined the run), `groundtruth.tum`,
+//!   `estimate.tum`, `online.tum` (if the system returned poses during the run), `map.ply`,
+//!   `grid.pgm` + `grid.yaml` (if it made them), `events.json` (its events), `timing.json`
+//!   ([`Timing`]), and `worker.log` (its standard error);
+//! - by evaluation (`runner::evaluate`): `metrics.json` ([`Metrics`]), `events.json` again
+//!   with every accepted loop judged ([`JudgedEvent`]), `ape.csv` (the aligned estimate and
+//!   its error at every associated pose, [`ApeSeries`]) and `results.mcap`.
+//!
+//! Nothing here runs a system or draws a page; layers above (`runner`, `sweep`, `report`)
+//! meet only through these files.
+
+pub mod aggregate;
+mod folder;
+mod maps;
+mod run;
+
+pub use folder::{
+    MARKER, SWEEP_MARKER, Staging, folder_name, is_sweep_folder, link_latest, write_atomic,
+};
+pub use maps::{read_ply, write_grid, write_ply};
+pub use run::{
+    ApeSeries, JudgedEvent, Latency, Metrics, RunFolder, RunOutcome, RunStatus, Timing, write_json,
+};
+
+/// File names inside a run folder.
+pub mod files {
+    /// The worker's order (removed when the run ends: it holds temporary paths).
+    pub const JOB: &str = "job.json";
+    pub const GROUNDTRUTH: &str = "groundtruth.tum";
+    pub const ESTIMATE: &str = "estimate.tum";
+    pub const ONLINE: &str = "online.tum";
+    pub const MAP: &str = "map.ply";
+    pub const GRID: &str = "grid.pgm";
+    pub const GRID_YAML: &str = "grid.yaml";
+    pub const EVENTS: &str = "events.json";
+    pub const TIMING: &str = "timing.json";
+    pub const METRICS: &str = "metrics.json";
+    /// The aligned estimate and its translation error per associated pose.
+    pub const APE: &str = "ape.csv";
+    /// Ground truth, aligned estimate, map and loops for Foxglove (`dataset::write_results`).
+    pub const RESULTS: &str = "results.mcap";
+    pub const LOG: &str = "worker.log";
+    pub const RUN: &str = "run.toml";
+}

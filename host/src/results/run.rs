@@ -1,0 +1,319 @@
+//! One run's folder and the typed files in it.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use eval::{LoopCounts, Statistics, Trajectory};
+use plugin_api::Event;
+use serde::{Deserialize, Serialize};
+
+use super::files;
+
+/// How one (scenario, system) run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunStatus {
+    /// The run finished and was evaluated.
+    Ok,
+    /// The run did not produce a result; the reason is shown in the reports
+    /// (e.g. `"timed out after 600 s"`).
+    Failed(String),
+}
+
+impl RunStatus {
+    /// `"ok"` or `"failed: <reason>"`, as `table.json` and a sweep's `cell.json` hold it.
+    pub fn text(&self) -> String {
+        match self {
+            Self::Ok => "ok".to_owned(),
+            Self::Failed(why) => format!("failed: {why}"),
+        }
+    }
+
+    /// The status of [`Self::text`].
+    pub fn from_text(text: &str) -> Self {
+        match text {
+            "ok" => Self::Ok,
+            other => Self::Failed(other.strip_prefix("failed: ").unwrap_or(other).to_owned()),
+        }
+    }
+}
+
+/// How a run of a plan ended, and where its folder is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutcome {
+    pub scenario: String,
+    /// The system's label (`[[plugins]] label`).
+    pub label: String,
+    pub status: RunStatus,
+    /// The route was cut at this simulated time, seconds; `None`: the whole route.
+    pub max_time_s: Option<f64>,
+    pub folder: RunFolder,
+}
+
+/// `metrics.json`: the run's scores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// The alignment before APE (`eval::Alignment::name`).
+    pub alignment: String,
+    /// APE translation of the final trajectory, metres.
+    pub ape: Statistics,
+    /// APE translation of the poses returned during the run, if any.
+    pub online_ape: Option<Statistics>,
+    /// Loop closures accepted (of those, how many were false and, if any, how many could
+    /// not be judged) and rejected.
+    pub loops: LoopCounts,
+}
+
+/// One entry of `events.json` once evaluated: the plugin's event as it sent it (`stamp_ns`,
+/// `kind`, `detail`, `loop_stamps_ns` when given) and, for an accepted loop that could be
+/// judged, `true_loop` with the ground-truth distance and heading difference it was judged
+/// on (`runner::loops`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JudgedEvent {
+    #[serde(flatten)]
+    pub event: Event,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub true_loop: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gt_distance_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gt_heading_deg: Option<f64>,
+    /// For a loop that carried its measured relative pose: that pose's error against
+    /// ground truth, metres and degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_error_deg: Option<f64>,
+    /// For a loop judged by its correction: the online estimate's position error just
+    /// before and just after it, metres.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_before_m: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_after_m: Option<f64>,
+}
+
+/// Latency percentiles of one kind of call, milliseconds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Latency {
+    pub calls: usize,
+    pub p50_ms: f64,
+    pub p90_ms: f64,
+    pub p99_ms: f64,
+    pub max_ms: f64,
+    pub total_s: f64,
+}
+
+/// `timing.json`: what the run cost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Where the messages came from: `simulation` (the worker's own), `shared simulation`
+    /// (the supervisor's, streamed to several workers) or `dataset`.
+    pub source: String,
+    pub simulated_s: f64,
+    pub wall_s: f64,
+    pub plugin_s: f64,
+    pub cpu_s: Option<f64>,
+    pub peak_rss_mb: Option<f64>,
+    /// Simulated seconds per wall second, simulator included.
+    pub realtime_factor: f64,
+    /// Simulated seconds per second spent inside the plugin: the system's own speed (a
+    /// shared simulation sets the pace of its whole group).
+    pub realtime_factor_plugin: f64,
+    /// Per kind of call (sensor, `finish`), in name order.
+    pub latency: BTreeMap<String, Latency>,
+}
+
+/// `ape.csv`: the final estimate after alignment and its APE translation error at every pose
+/// associated with ground truth, as evaluation computed them: `t_s,x_m,y_m,z_m,error_m`, one
+/// line per pose, every number in the shortest text that reads back to the same `f64`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ApeSeries {
+    /// Stamps of the associated pairs, seconds.
+    pub stamps_s: Vec<f64>,
+    /// The aligned estimate's positions, metres, in ground truth's frame.
+    pub aligned: Vec<[f64; 3]>,
+    /// The translation error of each, metres.
+    pub errors_m: Vec<f64>,
+}
+
+const APE_HEADER: &str = "t_s,x_m,y_m,z_m,error_m";
+
+impl ApeSeries {
+    /// The top view of the aligned estimate.
+    pub fn aligned_xy(&self) -> Vec<(f64, f64)> {
+        self.aligned.iter().map(|p| (p[0], p[1])).collect()
+    }
+
+    fn to_csv(&self) -> String {
+        let mut out = String::with_capacity(64 * self.stamps_s.len());
+        out.push_str(APE_HEADER);
+        out.push('\n');
+        for ((t, p), e) in self.stamps_s.iter().zip(&self.aligned).zip(&self.errors_m) {
+            let _ = writeln!(out, "{t},{},{},{},{e}", p[0], p[1], p[2]);
+        }
+        out
+    }
+
+    fn parse(text: &str) -> anyhow::Result<Self> {
+        let mut lines = text.lines();
+        anyhow::ensure!(
+            lines.next() == Some(APE_HEADER),
+            "expected the header line {APE_HEADER}"
+        );
+        let mut series = Self::default();
+        for (i, line) in lines.enumerate() {
+            let values: Vec<f64> = line
+                .split(',')
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("line {}: {line:?}", i + 2))?;
+            let [t, x, y, z, e] = values[..] else {
+                anyhow::bail!("line {}: expected 5 numbers, found {}", i + 2, values.len());
+            };
+            series.stamps_s.push(t);
+            series.aligned.push([x, y, z]);
+            series.errors_m.push(e);
+        }
+        Ok(series)
+    }
+}
+
+/// Writes `value` as pretty JSON with a final newline.
+pub fn write_json(path: &Path, value: &impl Serialize) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text + "\n").with_context(|| path.display().to_string())
+}
+
+fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<T> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: malformed", path.display()))
+}
+
+/// One run's folder: where each of its files is, and each file read and written as its type.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RunFolder {
+    pub dir: PathBuf,
+}
+
+impl RunFolder {
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self { dir: dir.into() }
+    }
+
+    /// The path of one of its [`files`].
+    pub fn path(&self, file: &str) -> PathBuf {
+        self.dir.join(file)
+    }
+
+    pub fn has(&self, file: &str) -> bool {
+        self.path(file).exists()
+    }
+
+    pub fn read_metrics(&self) -> anyhow::Result<Metrics> {
+        read_json(&self.path(files::METRICS))
+    }
+
+    pub fn write_metrics(&self, metrics: &Metrics) -> anyhow::Result<()> {
+        write_json(&self.path(files::METRICS), metrics)
+    }
+
+    /// `timing.json`, if the worker got as far as writing it.
+    pub fn read_timing(&self) -> anyhow::Result<Option<Timing>> {
+        let path = self.path(files::TIMING);
+        path.exists().then(|| read_json(&path)).transpose()
+    }
+
+    pub fn write_timing(&self, timing: &Timing) -> anyhow::Result<()> {
+        write_json(&self.path(files::TIMING), timing)
+    }
+
+    /// `events.json` as the plugin sent it (before evaluation).
+    pub fn read_events(&self) -> anyhow::Result<Vec<Event>> {
+        read_json(&self.path(files::EVENTS))
+    }
+
+    pub fn write_events(&self, events: &[Event]) -> anyhow::Result<()> {
+        write_json(&self.path(files::EVENTS), &events)
+    }
+
+    /// `events.json` after evaluation.
+    pub fn read_judged_events(&self) -> anyhow::Result<Vec<JudgedEvent>> {
+        read_json(&self.path(files::EVENTS))
+    }
+
+    pub fn write_judged_events(&self, events: &[JudgedEvent]) -> anyhow::Result<()> {
+        write_json(&self.path(files::EVENTS), &events)
+    }
+
+    pub fn read_ape(&self) -> anyhow::Result<ApeSeries> {
+        let path = self.path(files::APE);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        ApeSeries::parse(&text).with_context(|| path.display().to_string())
+    }
+
+    pub fn write_ape(&self, ape: &ApeSeries) -> anyhow::Result<()> {
+        let path = self.path(files::APE);
+        std::fs::write(&path, ape.to_csv()).with_context(|| path.display().to_string())
+    }
+
+    pub fn read_groundtruth(&self) -> anyhow::Result<Trajectory> {
+        Ok(eval::read_tum(self.path(files::GROUNDTRUTH))?)
+    }
+
+    pub fn read_estimate(&self) -> anyhow::Result<Trajectory> {
+        Ok(eval::read_tum(self.path(files::ESTIMATE))?)
+    }
+
+    /// `online.tum`, if the system returned poses during the run.
+    pub fn read_online(&self) -> anyhow::Result<Option<Trajectory>> {
+        let path = self.path(files::ONLINE);
+        Ok(path.exists().then(|| eval::read_tum(&path)).transpose()?)
+    }
+
+    /// `run.toml`'s text, if written.
+    pub fn read_run_toml(&self) -> Option<String> {
+        std::fs::read_to_string(self.path(files::RUN)).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ape_series_reads_back_bit_for_bit_and_a_bad_line_is_named() {
+        let series = ApeSeries {
+            stamps_s: vec![0.1, 1.0 / 3.0],
+            aligned: vec![[1e-300, -2.5, f64::MIN_POSITIVE], [0.1 + 0.2, 7.0, -0.0]],
+            errors_m: vec![0.0, std::f64::consts::PI],
+        };
+        let back = ApeSeries::parse(&series.to_csv()).expect("parse");
+        let bits = |s: &ApeSeries| -> Vec<u64> {
+            s.stamps_s
+                .iter()
+                .chain(s.aligned.iter().flatten())
+                .chain(&s.errors_m)
+                .map(|v| v.to_bits())
+                .collect()
+        };
+        assert_eq!(bits(&back), bits(&series));
+        let err = format!(
+            "{:#}",
+            ApeSeries::parse(&format!("{APE_HEADER}\n1,2,3\n")).expect_err("short line")
+        );
+        assert!(err.contains("line 2: expected 5 numbers, found 3"), "{err}");
+    }
+
+    #[test]
+    fn status_text_round_trips() {
+        for status in [
+            RunStatus::Ok,
+            RunStatus::Failed("timed out after 5 s".into()),
+        ] {
+            assert_eq!(RunStatus::from_text(&status.text()), status);
+        }
+    }
+}
