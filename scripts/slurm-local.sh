@@ -3,7 +3,7 @@
 # Debian's slurm-wlm and munge when missing, writes a minimal slurm.conf (one node with this
 # machine's cores and memory, one partition) unless one exists, and starts munged, slurmctld
 # and slurmd when they are not running. Idempotent; needs root (as does scripts/setup.sh).
-# Not for a real cluster: there, use the cluster's own Slurm (README, "Sweeps").
+# Not for a real cluster: there, use the cluster's own Slurm (docs/sweeps.md).
 set -euo pipefail
 
 if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then

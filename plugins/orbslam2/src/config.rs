@@ -45,8 +45,7 @@ impl Default for Config {
             local_mapping: LocalMappingConfig::default(),
             loop_closing: LoopClosingConfig::default(),
             vocabulary: String::new(),
-            // factrs until this plugin is measured on the others (README, "Factor-graph
-            // backends").
+            // factrs until this plugin is measured on the others (docs/backends.md).
             backend: BackendConfig {
                 name: "factrs".into(),
                 ..BackendConfig::default()

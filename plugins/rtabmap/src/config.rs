@@ -72,8 +72,7 @@ impl Default for Config {
             },
             map_decimation: 8,
             map_voxel_m: 0.05,
-            // factrs until this plugin is measured on the others (README, "Factor-graph
-            // backends").
+            // factrs until this plugin is measured on the others (docs/backends.md).
             backend: BackendConfig {
                 name: "factrs".into(),
                 ..BackendConfig::default()

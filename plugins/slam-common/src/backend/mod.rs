@@ -253,7 +253,7 @@ pub struct BackendConfig {
 impl Default for BackendConfig {
     fn default() -> Self {
         Self {
-            // Measured (README, "Factor-graph backends"): lio-sam's ATE on S0–S3 equal to or
+            // Measured (docs/backends.md): lio-sam's ATE on S0–S3 equal to or
             // below factrs's, its incremental update 0.22 ms p50 against 26 ms.
             name: "isam2".into(),
             window: 20,
