@@ -101,9 +101,15 @@ pub fn bench(
         let copy = staging.dir().join(reference::FILE);
         std::fs::copy(path, &copy).with_context(|| copy.display().to_string())?;
     }
-    let progress = Progress::new(plan.runs.len(), false);
-    let outcomes = crate::runner::execute(plan, staging.dir(), &|_, outcome| {
-        progress.finished(&format!("{}/{}", outcome.scenario, outcome.label), outcome);
+    // Weighed by route length: the runs of a bench differ in length more than in speed.
+    let weights = crate::runner::route_seconds(plan).ok();
+    let progress = Progress::new(plan.runs.len(), weights, false);
+    let outcomes = crate::runner::execute(plan, staging.dir(), &|i, outcome| {
+        progress.finished(
+            i,
+            &format!("{}/{}", outcome.scenario, outcome.label),
+            outcome,
+        );
     })?;
     let index: Vec<IndexedRun> = outcomes
         .iter()

@@ -88,7 +88,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             missing.len()
         );
         if !missing.is_empty() {
-            let progress = Progress::new(missing.len(), true);
+            let progress = Progress::new(missing.len(), None, true);
             match args.executor {
                 Executor::Local => {
                     let jobs = args
@@ -96,7 +96,8 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
                         .or(sweep.cfg.jobs)
                         .unwrap_or_else(crate::cmd::bench::default_jobs);
                     sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
-                        progress.finished(&cell.describe(), outcome)
+                        // Cells finish in any order; they weigh the same.
+                        progress.finished(0, &cell.describe(), outcome)
                     })?;
                 }
                 Executor::Slurm => {

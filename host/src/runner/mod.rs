@@ -84,19 +84,51 @@ pub fn execute(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<
     run_all(plan, &config, work, on_done)
 }
 
+/// Where each scenario of the plan stops, ns: its route's end or the plan's limit.
+fn route_ends_ns(
+    plan: &Plan,
+    config: &sim::SimConfig,
+    world: &sim::world::World,
+) -> anyhow::Result<Vec<i64>> {
+    plan.scenarios
+        .iter()
+        .map(|s| {
+            let sim = sim::Simulation::with_world(config, world.clone(), s, plan.seed)?;
+            route_end_ns(sim.duration_ns(), plan.max_time_s)
+        })
+        .collect()
+}
+
+/// The simulated seconds each run of the plan is fed, in the plan's order (to weigh runs
+/// in a progress estimate).
+pub fn route_seconds(plan: &Plan) -> anyhow::Result<Vec<f64>> {
+    let config = sim::SimConfig::load(plan.world.as_deref())?;
+    let world = sim::world::World::from_config(&config);
+    let ends = route_ends_ns(plan, &config, &world)?;
+    Ok(plan
+        .runs
+        .iter()
+        .map(|r| {
+            plan.scenarios
+                .iter()
+                .position(|s| *s == r.scenario)
+                .map_or(0.0, |k| ends[k] as f64 * 1e-9)
+        })
+        .collect())
+}
+
 fn run_all(
     plan: &Plan,
     config: &sim::SimConfig,
     work: &Path,
     on_done: OnDone,
 ) -> anyhow::Result<Vec<RunOutcome>> {
-    // Route lengths (samples of 0.1 s up to the route's end or limit), longest first.
     let world = sim::world::World::from_config(config);
-    let mut lengths = Vec::new();
-    for s in &plan.scenarios {
-        let sim = sim::Simulation::with_world(config, world.clone(), s, plan.seed)?;
-        lengths.push(route_end_ns(sim.duration_ns(), plan.max_time_s)? / 100_000_000 + 1);
-    }
+    // Route lengths in samples of 0.1 s, to start the longest first.
+    let lengths: Vec<i64> = route_ends_ns(plan, config, &world)?
+        .iter()
+        .map(|end| end / 100_000_000 + 1)
+        .collect();
 
     let bars = if plan.bars {
         MultiProgress::new()

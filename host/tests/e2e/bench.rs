@@ -64,6 +64,7 @@ fn baseline_bench_table_equals_direct_eval_of_written_files() {
             "estimate.tum",
             "online.tum",
             "metrics.json",
+            "ape.csv",
             "timing.json",
             "run.toml",
             "events.json",
@@ -107,7 +108,36 @@ fn baseline_bench_table_equals_direct_eval_of_written_files() {
             (Some(0), Some(0)),
             "{scenario}: {row}"
         );
+        // Not on a terminal: a line as the run ended, with its score and the time left.
+        let line = format!("/2] {scenario}/odom: ok, ATE RMSE {rmse:.3} m (elapsed ");
+        assert!(
+            text(&o.stdout)
+                .lines()
+                .any(|l| l.starts_with('[') && l.contains(&line) && l.ends_with(" s)")),
+            "no progress line {line:?} in\n{}",
+            text(&o.stdout)
+        );
     }
+    // ape.csv: the aligned estimate and the error of every associated pose, whose RMSE is
+    // the table's.
+    let ape = std::fs::read_to_string(out.join("s1/odom/ape.csv")).expect("ape.csv");
+    let errors: Vec<f64> = ape
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.rsplit(',')
+                .next()
+                .expect("error")
+                .parse()
+                .expect("number")
+        })
+        .collect();
+    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let table_rmse = table["s1"]["odom"]["rmse"].as_f64().expect("rmse");
+    assert!(
+        (rmse - table_rmse).abs() < 1e-12,
+        "ape.csv's RMSE {rmse} against the table's {table_rmse}"
+    );
     assert!(
         out.join("table.md").is_file()
             && out.join("table.csv").is_file()
@@ -836,6 +866,12 @@ fn out_of_tree_plugins_are_discovered_and_version_mismatches_refused() {
     assert!(
         line.contains("0.3.0") && line.contains("wheel_odometry"),
         "name, version, requirements: {line}"
+    );
+    // The test fixture that misbehaves on purpose is not among the user's plugins: the
+    // tests load it from their own folder (`deps/`), by path.
+    assert!(
+        !listing.lines().any(|l| l.starts_with("fault\t")),
+        "the fault fixture is listed beside the real systems:\n{listing}"
     );
 
     let out = tmp.path().join("run");

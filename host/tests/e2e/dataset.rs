@@ -588,7 +588,7 @@ fn an_independent_ros2_decoder_reads_the_camera() {
 }
 
 #[test]
-fn export_writes_tum_ground_truth_and_kitti_lidar() {
+fn export_writes_tum_ground_truth_tum_rgbd_and_kitti_lidar() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("export");
     let out = Command::new(env!("CARGO_BIN_EXE_vinebench"))
@@ -643,6 +643,65 @@ fn export_writes_tum_ground_truth_and_kitti_lidar() {
         f32::from_le_bytes(bin[..4].try_into().unwrap()),
         scan.points[0].x
     );
+    // The camera as a TUM RGB-D sequence, with the intrinsics and mount of the simulated
+    // frames in camera.yaml.
+    let read = |p: &str| std::fs::read_to_string(out_dir.join(p)).unwrap();
+    let pairs: Vec<String> = read("rgbd/associations.txt")
+        .lines()
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(pairs.len(), 31, "30 Hz over 1 s, both ends: {pairs:?}");
+    let (stamp, _) = pairs[0].split_once(' ').expect("timestamp filename");
+    assert!(out_dir.join(format!("rgbd/rgb/{stamp}.png")).is_file());
+    assert!(out_dir.join(format!("rgbd/depth/{stamp}.png")).is_file());
+    let Some(Message::Rgbd(frame)) = sim
+        .stream(SensorSet {
+            rgbd: true,
+            ..SensorSet::default()
+        })
+        .next()
+    else {
+        panic!("a camera frame")
+    };
+    let yaml = read("rgbd/camera.yaml");
+    let key = |k: &str| -> f64 {
+        yaml.lines()
+            .find_map(|l| l.strip_prefix(&format!("{k}: ")))
+            .unwrap_or_else(|| panic!("{k} in\n{yaml}"))
+            .parse()
+            .unwrap_or_else(|e| panic!("{k}: {e}"))
+    };
+    let [fx, fy, cx, cy] = frame.image.intrinsics;
+    assert_eq!(
+        [
+            key("Camera.fx"),
+            key("Camera.fy"),
+            key("Camera.cx"),
+            key("Camera.cy")
+        ],
+        [fx, fy, cx, cy]
+    );
+    assert_eq!(key("Camera.width"), frame.image.width as f64);
+    assert_eq!(key("Camera.height"), frame.image.height as f64);
+    assert_eq!(key("Camera.fps"), config().sensors.camera.rate_hz);
+    assert_eq!(key("DepthMapFactor"), 5000.0);
+    let mount =
+        config().sensors.camera.mount.base_from_sensor() * sim::camera::camera_from_optical();
+    let data: Vec<f64> = yaml
+        .split_once("data: [")
+        .and_then(|(_, rest)| rest.split_once(']'))
+        .expect("base_from_camera data")
+        .0
+        .split(',')
+        .map(|v| v.trim().parse().expect("number"))
+        .collect();
+    let m = mount.to_homogeneous();
+    for (k, v) in data.iter().enumerate() {
+        assert!(
+            (v - m[(k / 4, k % 4)]).abs() < 1e-8,
+            "base_from_camera[{k}] = {v}"
+        );
+    }
 }
 
 /// A plugin fed from a recording gives the same results as fed live: the baseline's
