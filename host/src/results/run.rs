@@ -249,6 +249,11 @@ impl RunFolder {
 
     pub fn read_ape(&self) -> anyhow::Result<ApeSeries> {
         let path = self.path(files::APE);
+        anyhow::ensure!(
+            path.exists(),
+            "{}: missing (a run evaluated before vinebench stored its APE: run it again)",
+            path.display()
+        );
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("{}: cannot read", path.display()))?;
         ApeSeries::parse(&text).with_context(|| path.display().to_string())
