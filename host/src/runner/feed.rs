@@ -77,8 +77,10 @@ fn frame(out: &mut Vec<u8>, tag: u8, ready_ns: i64, payload: &[u8]) {
 
 /// One message as the frames of its ROS 2 messages ([`crate::dataset::to_ros`]).
 pub fn encode(message: &Message, timing: &ScanTiming) -> Vec<u8> {
-    let mut out = Vec::new();
-    for (topic, ready_ns, data) in to_ros(message, timing) {
+    let parts = to_ros(message, timing);
+    // Sized once: a camera frame's images would otherwise be copied again as it grows.
+    let mut out = Vec::with_capacity(parts.iter().map(|(_, _, data)| 17 + data.len()).sum());
+    for (topic, ready_ns, data) in parts {
         let tag = Topic::ALL
             .iter()
             .position(|&t| t == topic)
