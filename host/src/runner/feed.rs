@@ -19,7 +19,7 @@
 //! on. A slow worker sets the pace of its group: the simulation runs at most [`AHEAD`]
 //! messages ahead of each.
 
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex};
@@ -67,34 +67,54 @@ pub fn union(sets: &[SensorSet]) -> SensorSet {
 // ---------------------------------------------------------------------------------------
 // Encoding
 
-fn frame(out: &mut Vec<u8>, tag: u8, ready_ns: i64, payload: &[u8]) {
-    out.reserve(17 + payload.len());
-    out.push(tag);
-    out.extend_from_slice(&ready_ns.to_le_bytes());
-    out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-    out.extend_from_slice(payload);
-}
+/// One message as the frames of its ROS 2 messages ([`crate::dataset::to_ros`]), each kept
+/// as its own buffer: a lane writes a frame's 17-byte head and then its payload straight
+/// to the worker's pipe, so a camera frame's images are not copied into one buffer first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frames(Vec<(u8, i64, Vec<u8>)>);
 
-/// One message as the frames of its ROS 2 messages ([`crate::dataset::to_ros`]).
-pub fn encode(message: &Message, timing: &ScanTiming) -> Vec<u8> {
-    let parts = to_ros(message, timing);
-    // Sized once: a camera frame's images would otherwise be copied again as it grows.
-    let mut out = Vec::with_capacity(parts.iter().map(|(_, _, data)| 17 + data.len()).sum());
-    for (topic, ready_ns, data) in parts {
-        let tag = Topic::ALL
-            .iter()
-            .position(|&t| t == topic)
-            .expect("every topic is in Topic::ALL") as u8;
-        frame(&mut out, tag, ready_ns, &data);
+impl Frames {
+    /// The frames of `message`.
+    pub fn encode(message: &Message, timing: &ScanTiming) -> Self {
+        Self(
+            to_ros(message, timing)
+                .into_iter()
+                .map(|(topic, ready_ns, data)| {
+                    let tag = Topic::ALL
+                        .iter()
+                        .position(|&t| t == topic)
+                        .expect("every topic is in Topic::ALL") as u8;
+                    (tag, ready_ns, data)
+                })
+                .collect(),
+        )
     }
-    out
-}
 
-/// The frame that closes a complete stream.
-pub fn end_frame() -> Vec<u8> {
-    let mut out = Vec::new();
-    frame(&mut out, END, 0, &[]);
-    out
+    /// The frame that closes a complete stream.
+    pub fn end() -> Self {
+        Self(vec![(END, 0, Vec::new())])
+    }
+
+    /// Writes each frame: `tag`, `ready_ns`, `length`, then the payload.
+    pub fn write_to(&self, out: &mut impl Write) -> std::io::Result<()> {
+        for (tag, ready_ns, payload) in &self.0 {
+            let mut head = [0u8; 17];
+            head[0] = *tag;
+            head[1..9].copy_from_slice(&ready_ns.to_le_bytes());
+            head[9..].copy_from_slice(&(payload.len() as u64).to_le_bytes());
+            out.write_all(&head)?;
+            out.write_all(payload)?;
+        }
+        Ok(())
+    }
+
+    /// The frames as one buffer, as a worker reads them.
+    #[cfg(test)]
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.write_to(&mut out).expect("writing to memory");
+        out
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -136,6 +156,22 @@ impl<R: Read> FeedReader<R> {
         Arc::clone(&self.error)
     }
 
+    /// A payload of `len` bytes: what the buffer holds of it, then the rest read straight
+    /// from the input, so that a large payload (an image) is not copied through the buffer.
+    fn payload(&mut self, len: usize) -> std::io::Result<Vec<u8>> {
+        let mut payload = Vec::with_capacity(len);
+        let buffered = &self.input.buffer()[..len.min(self.input.buffer().len())];
+        payload.extend_from_slice(buffered);
+        let n = buffered.len();
+        self.input.consume(n);
+        let rest = (len - n) as u64;
+        self.input.get_mut().take(rest).read_to_end(&mut payload)?;
+        if payload.len() < len {
+            return Err(std::io::ErrorKind::UnexpectedEof.into());
+        }
+        Ok(payload)
+    }
+
     /// The next message; `None` at the end mark.
     fn next_frame(&mut self) -> Result<Option<Message>, FeedError> {
         let truncated = |e: std::io::Error| match e.kind() {
@@ -159,8 +195,7 @@ impl<R: Read> FeedReader<R> {
                     topic.name()
                 )));
             }
-            let mut payload = vec![0u8; len as usize];
-            self.input.read_exact(&mut payload).map_err(truncated)?;
+            let payload = self.payload(len as usize).map_err(truncated)?;
             let message = self
                 .assembler
                 .push(topic, ready_ns, &payload)
@@ -231,7 +266,7 @@ pub enum Delivery {
 /// One worker's queue and the thread that writes it out.
 struct Lane {
     sensors: SensorSet,
-    queue: Option<SyncSender<Arc<Vec<u8>>>>,
+    queue: Option<SyncSender<Arc<Frames>>>,
     sent: usize,
     outcome: Option<Delivery>,
     /// How long its writer has been blocked on the worker's pipe.
@@ -277,7 +312,7 @@ impl WriteClock {
 
 /// Writes frames from `queue` to `out`, flushing whenever the queue runs dry, each write
 /// timed on `clock`; returns whether everything was written.
-fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>, clock: &WriteClock) -> bool {
+fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Frames>>, clock: &WriteClock) -> bool {
     let mut out = BufWriter::with_capacity(1 << 16, &mut out);
     loop {
         let frame = match queue.try_recv() {
@@ -293,7 +328,7 @@ fn write_lane(mut out: impl Write, queue: &Receiver<Arc<Vec<u8>>>, clock: &Write
             }
             Err(std::sync::mpsc::TryRecvError::Disconnected) => break,
         };
-        if clock.timed(|| out.write_all(&frame)).is_err() {
+        if clock.timed(|| frame.write_to(&mut out)).is_err() {
             return false;
         }
     }
@@ -313,7 +348,7 @@ impl Feed {
         std::thread::scope(|scope| {
             let mut lanes = Vec::new();
             for sub in subscribers {
-                let (tx, rx) = sync_channel::<Arc<Vec<u8>>>(AHEAD);
+                let (tx, rx) = sync_channel::<Arc<Frames>>(AHEAD);
                 let input = sub.input;
                 let clock = Arc::new(WriteClock::new());
                 let writer = {
@@ -342,7 +377,7 @@ impl Feed {
                 }
             });
             for message in sim_rx {
-                let frame = Arc::new(encode(&message, &self.scan_timing));
+                let frame = Arc::new(Frames::encode(&message, &self.scan_timing));
                 self.offer(
                     lanes
                         .iter_mut()
@@ -359,7 +394,7 @@ impl Feed {
             if simulated {
                 self.offer(
                     lanes.iter_mut().map(|(lane, _)| lane).collect(),
-                    &Arc::new(end_frame()),
+                    &Arc::new(Frames::end()),
                 );
             }
             let mut outcomes = Vec::new();
@@ -386,7 +421,7 @@ impl Feed {
     /// for the stall time is cut off. Each lane's stall is timed from when its own pipe
     /// stopped draining, not from when the feed came to wait on it, so the waits for
     /// workers that hang at about the same time overlap.
-    fn offer(&self, mut lanes: Vec<&mut Lane>, frame: &Arc<Vec<u8>>) {
+    fn offer(&self, mut lanes: Vec<&mut Lane>, frame: &Arc<Frames>) {
         let mut nap = Duration::from_micros(50);
         loop {
             lanes.retain_mut(|lane| {
@@ -438,12 +473,12 @@ mod tests {
             .take_while(|m| m.stamp_ns() < 150_000_000)
         {
             kinds.insert(message.sensor());
-            let bytes = encode(&message, &timing);
+            let bytes = Frames::encode(&message, &timing).to_bytes();
             let mut reader = FeedReader::new(&bytes[..]);
             let back = reader.next_frame().expect("decodes").expect("a message");
             assert_eq!(back, message, "{} changed on the wire", message.sensor());
             // Bitwise, not just ==: -0.0 and NaN payloads too.
-            assert_eq!(encode(&back, &timing), bytes);
+            assert_eq!(Frames::encode(&back, &timing).to_bytes(), bytes);
         }
         assert_eq!(kinds.len(), 7, "every sensor seen: {kinds:?}");
     }
@@ -457,14 +492,14 @@ mod tests {
             velocity_in_world: nalgebra::Vector3::x(),
             omega_in_base: nalgebra::Vector3::z(),
         });
-        let mut bytes = encode(&gt, &timing);
+        let mut bytes = Frames::encode(&gt, &timing).to_bytes();
         let mut reader = FeedReader::new(&bytes[..]);
         let slot = reader.error_slot();
         assert_eq!(reader.next(), Some(gt.clone()));
         assert_eq!(reader.next(), None);
         assert!(matches!(*slot.lock().unwrap(), Some(FeedError::Truncated)));
 
-        bytes.extend(end_frame());
+        bytes.extend(Frames::end().to_bytes());
         let mut reader = FeedReader::new(&bytes[..]);
         let slot = reader.error_slot();
         assert_eq!(reader.by_ref().count(), 1);
@@ -479,8 +514,7 @@ mod tests {
 
         // A payload that is not its topic's message, and an unknown tag.
         for (tag, payload) in [(5u8, vec![0u8; 40]), (200, vec![])] {
-            let mut bad = Vec::new();
-            frame(&mut bad, tag, 0, &payload);
+            let bad = Frames(vec![(tag, 0, payload)]).to_bytes();
             let mut reader = FeedReader::new(&bad[..]);
             let slot = reader.error_slot();
             assert_eq!(reader.by_ref().count(), 0);
