@@ -41,12 +41,18 @@ mod c_abi;
 mod ffi;
 mod loader;
 mod messages;
+mod parameters;
 mod rig;
+mod stages;
 mod system;
 
 pub use loader::{LoadError, LoadedPlugin, PluginInstance, load};
-pub use messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
-pub use rig::{Rig, SensorKind, SensorSpec};
+pub use messages::{
+    Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry, gray_from_rgb,
+};
+pub use parameters::Parameters;
+pub use rig::{Pinhole, Rig, SensorKind, SensorSpec};
+pub use stages::Stages;
 pub use system::{
     Event, EventKind, Mode, OccupancyGrid, PluginError, Requirements, SlamOutput, SlamSystem,
 };

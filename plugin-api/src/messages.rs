@@ -128,3 +128,26 @@ pub struct RgbdFrame<'a> {
     pub depth_m: &'a [f32],
     pub intrinsics: [f64; 4],
 }
+
+impl RgbdFrame<'_> {
+    /// The colour image in grey, as feature detectors take it ([`gray_from_rgb`]).
+    pub fn gray(&self) -> Vec<u8> {
+        gray_from_rgb(self.rgb, self.width as usize, self.height as usize)
+    }
+}
+
+/// BT.601 luma of packed RGB8, row-major, rounded as OpenCV's `COLOR_RGB2GRAY` bit for bit
+/// (its fixed point for 8-bit images: 0.299, 0.587 and 0.114 in 15 bits;
+/// `plugins/orbslam2` tests the equality against OpenCV).
+pub fn gray_from_rgb(rgb: &[u8], width: usize, height: usize) -> Vec<u8> {
+    const R: u32 = 9798;
+    const G: u32 = 19235;
+    const B: u32 = 3735;
+    rgb.chunks_exact(3)
+        .take(width * height)
+        .map(|p| {
+            ((R * u32::from(p[0]) + G * u32::from(p[1]) + B * u32::from(p[2]) + (1 << 14)) >> 15)
+                as u8
+        })
+        .collect()
+}

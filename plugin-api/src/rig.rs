@@ -6,6 +6,8 @@ use std::collections::BTreeMap;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::system::PluginError;
+
 /// What a sensor measures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -35,6 +37,36 @@ impl SensorKind {
             SensorKind::Rgbd => "rgbd",
         }
     }
+
+    /// What a person calls it, for messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            SensorKind::Imu => "IMU",
+            SensorKind::WheelOdometry => "wheel odometry",
+            SensorKind::Lidar => "3D lidar",
+            SensorKind::Scan2d => "2D scan",
+            SensorKind::Rgbd => "RGB-D camera",
+        }
+    }
+}
+
+/// A pinhole camera's intrinsics as the rig gives them: focal lengths and principal point in
+/// pixels, image size in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pinhole {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub width: f64,
+    pub height: f64,
+}
+
+impl Pinhole {
+    /// `[fx, fy, cx, cy]`.
+    pub fn intrinsics(&self) -> [f64; 4] {
+        [self.fx, self.fy, self.cx, self.cy]
+    }
 }
 
 /// One sensor of the rig.
@@ -55,6 +87,35 @@ pub struct SensorSpec {
 }
 
 impl SensorSpec {
+    /// The intrinsic parameter `key`, which must be finite and positive.
+    pub fn positive(&self, key: &str) -> Result<f64, PluginError> {
+        self.intrinsics
+            .get(key)
+            .copied()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .ok_or_else(|| {
+                PluginError::new(format!(
+                    "the {}'s intrinsics lack a positive {key}",
+                    match self.kind {
+                        SensorKind::Rgbd => "camera",
+                        kind => kind.describe(),
+                    }
+                ))
+            })
+    }
+
+    /// A camera's pinhole: `fx`, `fy`, `cx`, `cy`, `width` and `height`, each positive.
+    pub fn pinhole(&self) -> Result<Pinhole, PluginError> {
+        Ok(Pinhole {
+            fx: self.positive("fx")?,
+            fy: self.positive("fy")?,
+            cx: self.positive("cx")?,
+            cy: self.positive("cy")?,
+            width: self.positive("width")?,
+            height: self.positive("height")?,
+        })
+    }
+
     pub fn base_from_sensor(&self) -> Isometry3<f64> {
         let [x, y, z, w] = self.base_from_sensor_xyzw;
         Isometry3::from_parts(
@@ -88,6 +149,23 @@ impl Rig {
     /// The first sensor of `kind`.
     pub fn first(&self, kind: SensorKind) -> Option<&SensorSpec> {
         self.sensors.iter().find(|s| s.kind == kind)
+    }
+
+    /// The sensor called `name`, which must be of `kind`: what a plugin's configuration
+    /// names (`camera = "camera"`). The error names both.
+    pub fn require(&self, name: &str, kind: SensorKind) -> Result<&SensorSpec, PluginError> {
+        self.sensor(name).filter(|s| s.kind == kind).ok_or_else(|| {
+            PluginError::new(format!(
+                "the rig has no {} called {name:?}",
+                kind.describe()
+            ))
+        })
+    }
+
+    /// The first sensor of `kind`, which must exist.
+    pub fn require_first(&self, kind: SensorKind) -> Result<&SensorSpec, PluginError> {
+        self.first(kind)
+            .ok_or_else(|| PluginError::new(format!("the rig has no {}", kind.describe())))
     }
 
     pub fn to_toml(&self) -> String {

@@ -15,8 +15,8 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use sim::config::NoiseProfile;
 use sim::sensors::{LidarScan, Message};
 use sim::{SensorSet, SimConfig, Simulation};
-use slam_common::backend::ImuBias;
-use slam_common::imu::{NavState, Preintegrated};
+use slam_common::factor_graph::backend::ImuBias;
+use slam_common::motion::imu::{NavState, Preintegrated};
 use vinebench::runner::worker::plugin_point;
 
 fn sensors(imu: bool, lidar: bool) -> SensorSet {

@@ -47,9 +47,10 @@ fn a_true_loop_in_s4_is_accepted_and_lowers_the_error() {
 /// 10 s to 40 s), a frame's bag of words under the shipped vocabulary scores highest against
 /// its neighbour rather than against any frame 2.5 m or more away.
 fn neighbour_wins(plant_variation: f64) -> (usize, usize) {
-    use orbslam2::orb::{OrbConfig, OrbExtractor, gray_from_rgb};
+    use orbslam2::orb::{OrbConfig, OrbExtractor};
+    use plugin_api::gray_from_rgb;
     use sim::{SimConfig, Simulation};
-    use slam_common::vocabulary::Vocabulary;
+    use slam_common::place::vocabulary::Vocabulary;
 
     let vocabulary = Vocabulary::read_from(
         &mut &include_bytes!("../../../plugins/orbslam2/vocabulary/vineyard-k10l6.dbow")[..],

@@ -181,7 +181,7 @@ fn the_real_kiss_icp_and_orbslam3_run_through_the_bridge() {
     let adapters = vec![workspace_root().join("plugins/python-bridge/adapters")];
     // ORB-SLAM3 reads its vocabulary as DBoW2 text: ours, exported as the README says.
     let vocabulary = tmp.path().join("orbslam3-vocabulary.txt");
-    let ours = slam_common::vocabulary::Vocabulary::load(
+    let ours = slam_common::place::vocabulary::Vocabulary::load(
         &workspace_root().join("plugins/orbslam2/vocabulary/vineyard-k10l6.dbow"),
     )
     .expect("our vocabulary");

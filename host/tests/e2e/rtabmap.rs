@@ -12,7 +12,7 @@ use rtabmap::visual_odometry::{Tracking, VisualOdometry};
 use sim::config::Side;
 use sim::sensors::Message;
 use sim::{SensorSet, SimConfig, Simulation};
-use slam_common::scan2d::points_from_ranges;
+use slam_common::registration::scan2d::points_from_ranges;
 
 const FRAME_NS: i64 = 33_333_333;
 
@@ -427,7 +427,7 @@ fn a_false_loop_between_identical_rows_is_rejected() {
         .collect();
     let links = rtabmap::config::LinkSigmas::default();
     let build = |backend: &str, optimize_max_error: f64| {
-        let cfg = slam_common::backend::BackendConfig {
+        let cfg = slam_common::factor_graph::backend::BackendConfig {
             name: backend.into(),
             ..Default::default()
         };

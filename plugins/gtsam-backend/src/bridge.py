@@ -3,7 +3,7 @@
 2012) and CombinedImuFactor (Forster et al., "On-Manifold Preintegration for Real-Time
 Visual-Inertial Odometry", IEEE T-RO 33(1), 2017), driven through GTSAM's Python wrapper.
 
-The Rust side (plugins/slam-common/src/backend/gtsam.rs) checks every input (kinds, keys,
+The Rust side (plugins/slam-common/src/factor_graph/backend/gtsam.rs) checks every input (kinds, keys,
 finite numbers, positive sigmas, variables inserted once and before use) and asks for
 estimates one variable at a time; this module only translates requests into GTSAM calls. Requests and
 replies are little-endian byte strings whose layout is documented in the bridge's FFI crate

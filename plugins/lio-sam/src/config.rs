@@ -1,8 +1,9 @@
 //! The plugin's parameters: every key optional, defaults from LIO-SAM's `params.yaml`
 //! where they apply (names in the doc comments), unknown keys rejected.
 
+use plugin_api::Parameters;
 use serde::Deserialize;
-use slam_common::backend::{BackendConfig, ImuNoise};
+use slam_common::factor_graph::backend::{BackendConfig, ImuNoise};
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -29,6 +30,9 @@ pub struct Config {
     /// path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
 }
+
+/// No check beyond the types: every value the types allow is a valid setting.
+impl Parameters for Config {}
 
 impl Default for Config {
     fn default() -> Self {

@@ -6,7 +6,7 @@
 //! neighbours of a chosen point suppressed so that features spread out.
 
 use nalgebra::Vector3;
-use slam_common::voxel::downsample;
+use slam_common::registration::voxel::downsample;
 
 use crate::config::FeatureConfig;
 

@@ -5,7 +5,7 @@
 //! closure. Poses are `world_from_imu`, the frame IMU factors live in.
 
 use nalgebra::{Isometry3, Vector3, Vector6};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
     Profiled, Robust, Scope, Value, Var,
 };

@@ -5,8 +5,8 @@
 //! keyframes or their estimates change.
 
 use nalgebra::{Point3, Vector3};
-use slam_common::kdtree::KdTree3;
-use slam_common::voxel::downsample;
+use slam_common::registration::kdtree::KdTree3;
+use slam_common::registration::voxel::downsample;
 
 use crate::config::MappingConfig;
 use crate::keyframe::KeyframeView;

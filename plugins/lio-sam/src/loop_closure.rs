@@ -4,8 +4,8 @@
 //! fitness threshold becomes a relative-pose factor.
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use slam_common::icp::{IcpConfig, IcpTarget, icp};
-use slam_common::voxel::downsample;
+use slam_common::registration::icp::{IcpConfig, IcpTarget, icp};
+use slam_common::registration::voxel::downsample;
 
 use crate::config::LoopConfig;
 use crate::keyframe::KeyframeView;

@@ -8,8 +8,8 @@ use std::collections::VecDeque;
 
 use nalgebra::{Isometry3, Vector3};
 use plugin_api::Imu;
-use slam_common::backend::{ImuBias, ImuSample};
-use slam_common::imu::{NavState, Preintegrated};
+use slam_common::factor_graph::backend::{ImuBias, ImuSample};
+use slam_common::motion::imu::{NavState, Preintegrated};
 
 /// Poses of a frame at increasing times, in nanoseconds.
 #[derive(Debug, Clone, Default, PartialEq)]

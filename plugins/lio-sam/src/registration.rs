@@ -6,9 +6,9 @@
 //! at the prediction.
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use slam_common::geometry::{Line, Plane, fit_line, fit_plane};
-use slam_common::kdtree::{KdTree3, Neighbour};
-use slam_common::lsq::{NormalEquations, apply, converged};
+use slam_common::motion::geometry::{Line, Plane, fit_line, fit_plane};
+use slam_common::motion::lsq::{NormalEquations, apply, converged};
+use slam_common::registration::kdtree::{KdTree3, Neighbour};
 
 use crate::config::MappingConfig;
 use crate::features::Features;

@@ -4,12 +4,12 @@ use std::fmt::Write as _;
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind,
-    SlamOutput, SlamSystem,
+    Event, EventKind, Imu, Parameters, PluginError, PointCloud, Pose, Requirements, Rig,
+    SensorKind, SlamOutput, SlamSystem,
 };
-use slam_common::backend::ImuBias;
-use slam_common::imu::NavState;
-use slam_common::voxel::downsample;
+use slam_common::factor_graph::backend::ImuBias;
+use slam_common::motion::imu::NavState;
+use slam_common::registration::voxel::downsample;
 
 use crate::config::Config;
 use crate::deskew::{SweepLayout, rings};
@@ -228,7 +228,11 @@ impl LioSam {
     }
 
     /// IMU samples between two keyframes.
-    fn keyframe_samples(&self, t0_ns: i64, t1_ns: i64) -> Vec<slam_common::backend::ImuSample> {
+    fn keyframe_samples(
+        &self,
+        t0_ns: i64,
+        t1_ns: i64,
+    ) -> Vec<slam_common::factor_graph::backend::ImuSample> {
         self.imu
             .samples(t0_ns, t1_ns)
             .into_iter()
@@ -327,14 +331,9 @@ impl SlamSystem for LioSam {
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
-        let cfg: Config = toml::from_str(config_toml)
-            .map_err(|e| PluginError::new(format!("parameters: {}", e.message())))?;
-        let lidar = rig
-            .first(SensorKind::Lidar)
-            .ok_or_else(|| PluginError::new("the rig has no 3D lidar"))?;
-        let imu = rig
-            .first(SensorKind::Imu)
-            .ok_or_else(|| PluginError::new("the rig has no IMU"))?;
+        let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
+        let lidar = rig.require_first(SensorKind::Lidar)?;
+        let imu = rig.require_first(SensorKind::Imu)?;
         let columns = lidar.intrinsics.get("columns").copied().unwrap_or(1800.0);
         if lidar.rate_hz <= 0.0 || columns < 1.0 {
             return Err(PluginError::new(

@@ -2,8 +2,9 @@
 //! ORB-SLAM2's published RGB-D settings (its `TUM*.yaml` files and the constants of its
 //! tracking, local mapping and loop closing; names in the doc comments).
 
+use plugin_api::Parameters;
 use serde::Deserialize;
-use slam_common::backend::BackendConfig;
+use slam_common::factor_graph::backend::BackendConfig;
 
 use crate::orb::OrbConfig;
 
@@ -28,7 +29,7 @@ pub struct Config {
     /// The vocabulary file; empty: the one shipped in the plugin (trained on another world,
     /// see `plugins/orbslam2/vocabulary/README.md`).
     pub vocabulary: String,
-    /// The essential graph's backend (`slam_common::backend`).
+    /// The essential graph's backend (`slam_common::factor_graph::backend`).
     pub backend: BackendConfig,
 }
 
@@ -196,14 +197,14 @@ impl Default for LoopClosingConfig {
 }
 
 impl Config {
-    pub fn from_toml(text: &str) -> Result<Self, String> {
-        let cfg: Self =
-            toml::from_str(text).map_err(|e| format!("orbslam2 parameters: {}", e.message()))?;
-        cfg.validate()?;
-        Ok(cfg)
+    /// Depth below which a point is close (`mThDepth`), m.
+    pub fn close_depth_m(&self) -> f64 {
+        self.th_depth * self.baseline_m
     }
+}
 
-    fn validate(&self) -> Result<(), String> {
+impl Parameters for Config {
+    fn check(&self) -> Result<(), String> {
         let positive = [
             ("baseline_m", self.baseline_m),
             ("th_depth", self.th_depth),
@@ -215,9 +216,7 @@ impl Config {
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "orbslam2 parameters: {name} must be positive (scale_factor above 1)"
-                ));
+                return Err(format!("{name} must be positive (scale_factor above 1)"));
             }
         }
         let ratios = [
@@ -241,28 +240,19 @@ impl Config {
         ];
         for (name, v) in ratios {
             if !(v > 0.0 && v <= 1.0) {
-                return Err(format!(
-                    "orbslam2 parameters: {name} must be in (0, 1], got {v}"
-                ));
+                return Err(format!("{name} must be in (0, 1], got {v}"));
             }
         }
         if self.min_depth_m >= self.max_depth_m {
-            return Err("orbslam2 parameters: min_depth_m must be below max_depth_m".into());
+            return Err("min_depth_m must be below max_depth_m".into());
         }
         if self.orb.levels == 0 || self.orb.features == 0 {
-            return Err(
-                "orbslam2 parameters: orb.levels and orb.features must be at least 1".into(),
-            );
+            return Err("orb.levels and orb.features must be at least 1".into());
         }
         if self.loop_closing.consistency == 0 {
-            return Err("orbslam2 parameters: loop_closing.consistency must be at least 1".into());
+            return Err("loop_closing.consistency must be at least 1".into());
         }
         Ok(())
-    }
-
-    /// Depth below which a point is close (`mThDepth`), m.
-    pub fn close_depth_m(&self) -> f64 {
-        self.th_depth * self.baseline_m
     }
 }
 

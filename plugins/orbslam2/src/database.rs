@@ -7,7 +7,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use slam_common::vocabulary::{BowVector, Vocabulary, WordId};
+use slam_common::place::vocabulary::{BowVector, Vocabulary, WordId};
 
 use crate::map::Map;
 

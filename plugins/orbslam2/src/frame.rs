@@ -4,8 +4,8 @@
 //! below `ThDepth` baselines. Keypoints are bucketed in a grid for area searches.
 
 use nalgebra::{Isometry3, Vector3};
-use slam_common::ba::StereoCamera;
-use slam_common::vocabulary::{BowVector, FeatureVector, Vocabulary};
+use slam_common::factor_graph::ba::StereoCamera;
+use slam_common::place::vocabulary::{BowVector, FeatureVector, Vocabulary};
 
 use crate::matcher::Source;
 use crate::orb::KeyPoint;

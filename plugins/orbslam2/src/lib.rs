@@ -16,7 +16,7 @@
 //!    duplicate fusion, local bundle adjustment,
 //!    keyframe culling;
 //! 3. **loop closing** ([`loop_closing`]): candidates from the keyframe database
-//!    ([`database`]) over a DBoW2 vocabulary (`slam_common::vocabulary`) trained on another
+//!    ([`database`]) over a DBoW2 vocabulary (`slam_common::place::vocabulary`) trained on another
 //!    world, covisibility-group consistency, geometric verification, correction by pose
 //!    propagation, point fusion, essential-graph optimisation and a global bundle
 //!    adjustment — with no check on the size of the correction, as published.

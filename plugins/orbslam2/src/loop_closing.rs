@@ -24,7 +24,7 @@ use nalgebra::{
     Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3, Vector6,
 };
 use rand::{Rng, SeedableRng};
-use slam_common::backend::{self, BackendConfig, Factor, Robust, Value, Var};
+use slam_common::factor_graph::backend::{self, BackendConfig, Factor, Robust, Value, Var};
 
 use crate::config::LoopClosingConfig;
 use crate::database::KeyFrameDatabase;
@@ -32,8 +32,8 @@ use crate::frame::{Camera, Frame};
 use crate::map::Map;
 use crate::matcher::{self, Source, TH_HIGH};
 use crate::optimizer::global_bundle_adjustment;
-use slam_common::ba::{self, PoseObservation};
-use slam_common::vocabulary::Vocabulary;
+use slam_common::factor_graph::ba::{self, PoseObservation};
+use slam_common::place::vocabulary::Vocabulary;
 
 /// What became of a loop candidate that passed the consistency test.
 #[derive(Debug, Clone, PartialEq)]
@@ -417,7 +417,7 @@ fn guided(
             if probe.matches[i].is_some() {
                 continue;
             }
-            let d = slam_common::bow::hamming(&point.descriptor, &probe.descriptors[i]);
+            let d = slam_common::place::bow::hamming(&point.descriptor, &probe.descriptors[i]);
             if d < best.0 {
                 best = (d, Some(i));
             }

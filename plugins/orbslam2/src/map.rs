@@ -10,7 +10,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::{Isometry3, Vector3};
-use slam_common::bow::hamming;
+use slam_common::place::bow::hamming;
 
 use crate::frame::{Camera, Descriptor, Frame};
 

@@ -6,8 +6,8 @@
 //! only the three fullest bins survive).
 
 use nalgebra::{Isometry3, Vector3};
-use slam_common::bow::hamming;
-use slam_common::vocabulary::NodeId;
+use slam_common::place::bow::hamming;
+use slam_common::place::vocabulary::NodeId;
 
 use crate::frame::{Camera, Descriptor, Frame};
 use crate::map::Map;
@@ -421,8 +421,8 @@ mod tests {
     use super::*;
     use crate::orb::KeyPoint;
     use rand::{Rng, SeedableRng};
-    use slam_common::ba::StereoCamera;
-    use slam_common::vocabulary::{TrainConfig, Vocabulary};
+    use slam_common::factor_graph::ba::StereoCamera;
+    use slam_common::place::vocabulary::{TrainConfig, Vocabulary};
 
     fn camera() -> Camera {
         let scale_factors: Vec<f64> = (0..8).map(|l| 1.2f64.powi(l)).collect();

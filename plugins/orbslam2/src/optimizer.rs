@@ -1,11 +1,11 @@
 //! The optimisations of ORB-SLAM2's `Optimizer` on the shared bundle adjuster
-//! (`slam_common::ba`, Levenberg–Marquardt with the point blocks eliminated by the Schur
+//! (`slam_common::factor_graph::ba`, Levenberg–Marquardt with the point blocks eliminated by the Schur
 //! complement): the frame's pose alone, the local bundle adjustment of a new keyframe's
 //! covisible neighbourhood, and the global bundle adjustment after a loop.
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use slam_common::ba::{
+use slam_common::factor_graph::ba::{
     self, CHI2_MONO, CHI2_STEREO, Observation, Options, PoseObservation, PoseVar, Problem,
 };
 

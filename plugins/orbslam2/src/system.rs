@@ -5,18 +5,18 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 use plugin_api::{
-    Event, EventKind, PluginError, Pose, Requirements, RgbdFrame, Rig, SensorKind, SlamOutput,
-    SlamSystem,
+    Event, EventKind, Parameters, PluginError, Pose, Requirements, RgbdFrame, Rig, SensorKind,
+    SlamOutput, SlamSystem, Stages,
 };
-use slam_common::ba::StereoCamera;
-use slam_common::vocabulary::Vocabulary;
+use slam_common::factor_graph::ba::StereoCamera;
+use slam_common::place::vocabulary::Vocabulary;
 
 use crate::config::Config;
 use crate::frame::{Camera, Frame};
 use crate::local_mapping::LocalMapping;
 use crate::loop_closing::{LoopClosing, Verdict};
 use crate::map::Map;
-use crate::orb::{OrbExtractor, gray_from_rgb};
+use crate::orb::OrbExtractor;
 use crate::tracking::{Context, Outcome, Tracking};
 
 /// The vocabulary shipped with the plugin (see `plugins/orbslam2/vocabulary/README.md`).
@@ -29,23 +29,6 @@ struct Record {
     stamp_ns: i64,
     reference_kf: usize,
     camera_from_reference: Isometry3<f64>,
-}
-
-/// Durations of the stages, seconds, for the summary printed at the end.
-#[derive(Debug, Default)]
-struct Timings {
-    frame: Vec<f64>,
-    local_mapping: Vec<f64>,
-    loop_correction: Vec<f64>,
-}
-
-fn percentile(v: &[f64], q: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s[((s.len() - 1) as f64 * q).round() as usize]
 }
 
 /// ORB-SLAM2-style RGB-D SLAM.
@@ -64,7 +47,8 @@ pub struct OrbSlam2 {
     loop_closing: LoopClosing,
     records: Vec<Record>,
     events: Vec<Event>,
-    timings: Timings,
+    /// Durations of the pipeline's stages, for the summary printed at the end.
+    stages: Stages,
 }
 
 impl OrbSlam2 {
@@ -113,6 +97,87 @@ impl OrbSlam2 {
         };
         self.events.push(event);
     }
+
+    fn event(&mut self, stamp_ns: i64, kind: EventKind, detail: String) {
+        self.events.push(Event::new(stamp_ns, kind, detail));
+    }
+
+    /// Tracking failed on the frame of `keypoints` keypoints, after tracking had held.
+    fn lost(&mut self, stamp_ns: i64, keypoints: usize) {
+        let detail = format!(
+            "{keypoints} keypoints, {} tracked map points",
+            self.tracking.inliers
+        );
+        self.event(stamp_ns, EventKind::TrackingLost, detail);
+    }
+
+    /// The loop closing thread on a new keyframe: detection, verification and correction,
+    /// each verdict an event.
+    fn close_loops(&mut self, stamp_ns: i64, kf: usize) {
+        let verdicts = self.loop_closing.process(
+            kf,
+            &mut self.map,
+            &self.camera,
+            &self.cfg.loop_closing,
+            &self.cfg.backend,
+        );
+        for verdict in verdicts {
+            if matches!(verdict, Verdict::Accepted { .. }) {
+                if let Some(s) = self.loop_closing.last_correction_s {
+                    self.stages.record("loop_correction", s);
+                }
+            }
+            self.loop_event(stamp_ns, verdict);
+        }
+    }
+
+    /// A tracked frame's pose, kept relative to its reference keyframe so that the final
+    /// trajectory follows the optimised keyframes (ORB-SLAM2's `mlRelativeFramePoses`).
+    fn record_tracked(&mut self, stamp_ns: i64) -> Pose {
+        let (reference_kf, camera_from_reference) = self
+            .tracking
+            .reference()
+            .expect("a tracked frame has a reference keyframe");
+        self.records.push(Record {
+            stamp_ns,
+            reference_kf,
+            camera_from_reference,
+        });
+        let camera_from_world = camera_from_reference * self.map.carried_pose(reference_kf);
+        Pose::new(stamp_ns, &self.base_pose(&camera_from_world))
+    }
+}
+
+/// A camera frame as tracking takes it: its ORB features on the grey image, each with its
+/// depth and virtual right coordinate.
+fn orb_frame(
+    image: &RgbdFrame<'_>,
+    extractor: &mut OrbExtractor,
+    camera: &Camera,
+) -> Result<Frame, PluginError> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    if image.rgb.len() != 3 * w * h || image.depth_m.len() != w * h {
+        return Err(PluginError::new(format!(
+            "camera frame at {} ns: {}x{} but {} colour bytes and {} depths",
+            image.stamp_ns,
+            w,
+            h,
+            image.rgb.len(),
+            image.depth_m.len()
+        )));
+    }
+    let gray = image.gray();
+    let (keys, descriptors) = extractor
+        .extract(&gray, w, h)
+        .map_err(|e| PluginError::new(format!("ORB extraction: {e}")))?;
+    Ok(Frame::new(
+        image.stamp_ns,
+        camera,
+        keys,
+        descriptors,
+        image.depth_m,
+        w,
+    ))
 }
 
 impl SlamSystem for OrbSlam2 {
@@ -125,38 +190,20 @@ impl SlamSystem for OrbSlam2 {
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
         let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
-        let spec = rig
-            .sensor(&cfg.camera)
-            .filter(|s| s.kind == SensorKind::Rgbd)
-            .ok_or_else(|| {
-                PluginError::new(format!(
-                    "the rig has no RGB-D camera called {:?}",
-                    cfg.camera
-                ))
-            })?;
-        let k = |key: &str| {
-            spec.intrinsics
-                .get(key)
-                .copied()
-                .filter(|v| v.is_finite() && *v > 0.0)
-                .ok_or_else(|| {
-                    PluginError::new(format!("the camera's intrinsics lack a positive {key}"))
-                })
-        };
-        let (fx, fy, cx, cy) = (k("fx")?, k("fy")?, k("cx")?, k("cy")?);
-        let (width, height) = (k("width")?, k("height")?);
+        let spec = rig.require(&cfg.camera, SensorKind::Rgbd)?;
+        let pinhole = spec.pinhole()?;
         let extractor = OrbExtractor::new(cfg.orb)
             .map_err(|e| PluginError::new(format!("ORB extractor: {e}")))?;
         let camera = Camera {
             stereo: StereoCamera {
-                fx,
-                fy,
-                cx,
-                cy,
-                bf: cfg.baseline_m * fx,
+                fx: pinhole.fx,
+                fy: pinhole.fy,
+                cx: pinhole.cx,
+                cy: pinhole.cy,
+                bf: cfg.baseline_m * pinhole.fx,
             },
-            width,
-            height,
+            width: pinhole.width,
+            height: pinhole.height,
             close_depth_m: cfg.close_depth_m(),
             min_depth_m: cfg.min_depth_m,
             max_depth_m: cfg.max_depth_m,
@@ -184,39 +231,20 @@ impl SlamSystem for OrbSlam2 {
             loop_closing: LoopClosing::default(),
             records: Vec::new(),
             events: Vec::new(),
-            timings: Timings::default(),
+            stages: Stages::default(),
             cfg,
         })
     }
 
+    /// ORB-SLAM2's pipeline on one frame (Mur-Artal and Tardós 2017, Fig. 1): the tracking
+    /// thread (ORB extraction, tracking against the local map, the keyframe decision), then,
+    /// on a new keyframe, the local mapping and loop closing threads.
     fn on_rgbd(&mut self, image: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
         let start = Instant::now();
-        let (w, h) = (image.width as usize, image.height as usize);
-        if image.rgb.len() != 3 * w * h || image.depth_m.len() != w * h {
-            return Err(PluginError::new(format!(
-                "camera frame at {} ns: {}x{} but {} colour bytes and {} depths",
-                image.stamp_ns,
-                w,
-                h,
-                image.rgb.len(),
-                image.depth_m.len()
-            )));
-        }
-        // Tracking thread: ORB extraction and tracking.
-        let gray = gray_from_rgb(image.rgb, w, h);
-        let (keys, descriptors) = self
-            .extractor
-            .extract(&gray, w, h)
-            .map_err(|e| PluginError::new(format!("ORB extraction: {e}")))?;
-        let mut frame = Frame::new(
-            image.stamp_ns,
-            &self.camera,
-            keys,
-            descriptors,
-            image.depth_m,
-            w,
-        );
-        let initial = self.camera_from_base;
+        let stamp_ns = image.stamp_ns;
+        let mut frame = self.stages.time("orb", || {
+            orb_frame(image, &mut self.extractor, &self.camera)
+        })?;
         let ctx = Context {
             cfg: &self.cfg,
             camera: &self.camera,
@@ -224,82 +252,38 @@ impl SlamSystem for OrbSlam2 {
             database: &self.loop_closing.database,
             fps: self.fps,
         };
-        let outcome = self
-            .tracking
-            .track(&mut frame, &mut self.map, &ctx, &initial);
-        let pose = match &outcome {
+        let outcome = self.stages.time("tracking", || {
+            self.tracking
+                .track(&mut frame, &mut self.map, &ctx, &self.camera_from_base)
+        });
+        let pose = match outcome {
             Outcome::Tracked {
                 keyframe,
                 relocalised,
             } => {
-                if *relocalised {
-                    self.events.push(Event::new(
-                        image.stamp_ns,
-                        EventKind::TrackingRecovered,
-                        "relocalised".to_string(),
-                    ));
+                if relocalised {
+                    self.event(stamp_ns, EventKind::TrackingRecovered, "relocalised".into());
                 }
-                if let Some(kf) = *keyframe {
-                    // Local mapping thread.
-                    let lm_start = Instant::now();
-                    self.local_mapping.process(
-                        kf,
-                        &mut self.map,
-                        &self.camera,
-                        &self.cfg.local_mapping,
-                    );
-                    self.timings
-                        .local_mapping
-                        .push(lm_start.elapsed().as_secs_f64());
-                    // Loop closing thread.
-                    let verdicts = self.loop_closing.process(
-                        kf,
-                        &mut self.map,
-                        &self.camera,
-                        &self.cfg.loop_closing,
-                        &self.cfg.backend,
-                    );
-                    for v in verdicts {
-                        if matches!(v, Verdict::Accepted { .. }) {
-                            if let Some(s) = self.loop_closing.last_correction_s {
-                                self.timings.loop_correction.push(s);
-                            }
-                        }
-                        self.loop_event(image.stamp_ns, v);
-                    }
+                if let Some(kf) = keyframe {
+                    self.stages.time("local_mapping", || {
+                        self.local_mapping.process(
+                            kf,
+                            &mut self.map,
+                            &self.camera,
+                            &self.cfg.local_mapping,
+                        )
+                    });
+                    self.close_loops(stamp_ns, kf);
                 }
-                let (reference_kf, camera_from_reference) = self
-                    .tracking
-                    .reference()
-                    .expect("a tracked frame has a reference keyframe");
-                self.records.push(Record {
-                    stamp_ns: image.stamp_ns,
-                    reference_kf,
-                    camera_from_reference,
-                });
-                let camera_from_world = camera_from_reference * self.map.carried_pose(reference_kf);
-                Some(Pose::new(
-                    image.stamp_ns,
-                    &self.base_pose(&camera_from_world),
-                ))
+                Some(self.record_tracked(stamp_ns))
             }
-            Outcome::Lost { newly } => {
-                if *newly {
-                    self.events.push(Event::new(
-                        image.stamp_ns,
-                        EventKind::TrackingLost,
-                        format!(
-                            "{} keypoints, {} tracked map points",
-                            frame.len(),
-                            self.tracking.inliers
-                        ),
-                    ));
-                }
+            Outcome::Lost { newly: true } => {
+                self.lost(stamp_ns, frame.len());
                 None
             }
-            Outcome::NotInitialized => None,
+            Outcome::Lost { newly: false } | Outcome::NotInitialized => None,
         };
-        self.timings.frame.push(start.elapsed().as_secs_f64());
+        self.stages.record("frame", start.elapsed().as_secs_f64());
         Ok(pose)
     }
 
@@ -320,19 +304,12 @@ impl SlamSystem for OrbSlam2 {
             .filter(|p| !p.bad && !p.observations.is_empty())
             .map(|p| [p.world.x as f32, p.world.y as f32, p.world.z as f32])
             .collect();
-        let t = &self.timings;
         eprintln!(
-            "orbslam2: {} keyframes ({} live), {} points; frame p50 {:.1} ms p99 {:.1} ms; local mapping n={} p50 {:.1} ms p99 {:.1} ms; loop corrections n={} max {:.2} s",
+            "orbslam2: {} keyframes ({} live), {} points; {}",
             self.map.keyframes.len(),
             self.map.live_keyframe_count(),
             self.map.points.iter().filter(|p| !p.bad).count(),
-            1e3 * percentile(&t.frame, 0.5),
-            1e3 * percentile(&t.frame, 0.99),
-            t.local_mapping.len(),
-            1e3 * percentile(&t.local_mapping, 0.5),
-            1e3 * percentile(&t.local_mapping, 0.99),
-            t.loop_correction.len(),
-            t.loop_correction.iter().copied().fold(0.0, f64::max),
+            self.stages.summary(),
         );
         Ok(SlamOutput {
             trajectory,

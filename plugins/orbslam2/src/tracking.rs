@@ -11,7 +11,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use opencv::calib3d;
 use opencv::core::{Mat, Point2f, Point3f, Vector};
 use opencv::prelude::*;
-use slam_common::vocabulary::Vocabulary;
+use slam_common::place::vocabulary::Vocabulary;
 
 use crate::config::Config;
 use crate::database::KeyFrameDatabase;

@@ -7,7 +7,7 @@
 //! and be seen at consistent scales.
 
 use nalgebra::{Isometry3, Matrix3, Matrix4, Point3, Vector3};
-use slam_common::bow::hamming;
+use slam_common::place::bow::hamming;
 
 use crate::frame::{Camera, Frame};
 use crate::map::Map;

@@ -1,10 +1,11 @@
 //! The plugin's parameters: every key optional, defaults from RTAB-Map's (its parameter names
 //! in the doc comments), unknown keys rejected.
 
+use plugin_api::Parameters;
 use serde::Deserialize;
-use slam_common::backend::BackendConfig;
-use slam_common::occupancy::OccupancyGridConfig;
-use slam_common::scan2d::Icp2dConfig;
+use slam_common::factor_graph::backend::BackendConfig;
+use slam_common::maps::occupancy::OccupancyGridConfig;
+use slam_common::registration::scan2d::Icp2dConfig;
 
 use crate::proximity::ProximityConfig;
 
@@ -289,7 +290,7 @@ pub struct MemoryConfig {
     pub word_nndr: f32,
     /// The vocabulary's search radius, as the multi-index hash's probe radius `r`: words
     /// within `16 (r + 1)` bits are found exactly, so a descriptor farther than
-    /// `word_nndr × 16 (r + 1)` from every word is a new word (see `slam_common::bow`).
+    /// `word_nndr × 16 (r + 1)` from every word is a new word (see `slam_common::place::bow`).
     /// BRIEF descriptors of one corner seen 0.5 m apart differ by 30–50 bits.
     pub word_probe_radius: u32,
 }
@@ -373,15 +374,8 @@ impl Default for LinkSigmas {
     }
 }
 
-impl Config {
-    pub fn from_toml(text: &str) -> Result<Self, String> {
-        let cfg: Self =
-            toml::from_str(text).map_err(|e| format!("rtabmap parameters: {}", e.message()))?;
-        cfg.validate()?;
-        Ok(cfg)
-    }
-
-    fn validate(&self) -> Result<(), String> {
+impl Parameters for Config {
+    fn check(&self) -> Result<(), String> {
         let positive = [
             ("memory.detection_rate_hz", self.memory.detection_rate_hz),
             (
@@ -398,9 +392,7 @@ impl Config {
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!(
-                    "rtabmap parameters: {name} must be positive, got {v}"
-                ));
+                return Err(format!("{name} must be positive, got {v}"));
             }
         }
         let non_negative = [
@@ -412,27 +404,26 @@ impl Config {
         ];
         for (name, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!(
-                    "rtabmap parameters: {name} must be 0 or more, got {v}"
-                ));
+                return Err(format!("{name} must be 0 or more, got {v}"));
             }
         }
         if self.loop_closure.prediction.len() < 2 {
-            return Err(
-                "rtabmap parameters: loop_closure.prediction needs at least 2 values".into(),
-            );
+            return Err("loop_closure.prediction needs at least 2 values".into());
         }
-        if self.memory.word_probe_radius > slam_common::bow::MAX_PROBE_RADIUS
+        if self.memory.word_probe_radius > slam_common::place::bow::MAX_PROBE_RADIUS
             || !(self.memory.word_nndr > 0.0 && self.memory.word_nndr <= 1.0)
         {
             return Err(format!(
-                "rtabmap parameters: memory.word_probe_radius must be at most {} and memory.word_nndr in (0, 1]",
-                slam_common::bow::MAX_PROBE_RADIUS
+                "memory.word_probe_radius must be at most {} and memory.word_nndr in (0, 1]",
+                slam_common::place::bow::MAX_PROBE_RADIUS
             ));
         }
         if self.map_decimation == 0 || self.memory.max_words == 0 || self.features.max_features == 0
         {
-            return Err("rtabmap parameters: map_decimation, memory.max_words and features.max_features must be at least 1".into());
+            return Err(
+                "map_decimation, memory.max_words and features.max_features must be at least 1"
+                    .into(),
+            );
         }
         Ok(())
     }

@@ -21,7 +21,7 @@ use rand_distr::{Distribution, Normal};
 use crate::config::FeatureConfig;
 
 /// A 256-bit descriptor.
-pub type Descriptor = slam_common::bow::Descriptor;
+pub type Descriptor = slam_common::place::bow::Descriptor;
 
 /// BRIEF's patch side, px (the paper's S).
 const PATCH: i32 = 48;
@@ -222,4 +222,4 @@ fn back_project(image: &Image<'_>, x: f32, y: f32, cfg: &FeatureConfig) -> Optio
     ))
 }
 
-pub use slam_common::bow::hamming;
+pub use slam_common::place::bow::hamming;

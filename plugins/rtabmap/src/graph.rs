@@ -11,7 +11,7 @@
 //! this check sees.
 
 use nalgebra::{Isometry3, Vector6};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, FactorId, Profiled, Robust, Scope, Value,
     Var,
 };

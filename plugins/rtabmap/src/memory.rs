@@ -34,7 +34,7 @@
 use std::collections::{BTreeSet, VecDeque};
 
 use nalgebra::{Isometry3, Vector2, Vector3};
-use slam_common::bow::{SignatureId, Vocabulary, VocabularyConfig, WordId};
+use slam_common::place::bow::{Dictionary, DictionaryConfig, SignatureId, WordId};
 
 use crate::bayes::{BayesFilter, Posterior};
 use crate::config::{LoopClosureConfig, MemoryConfig};
@@ -84,7 +84,7 @@ pub struct Hypothesis {
 #[derive(Debug)]
 pub struct Memory {
     cfg: MemoryConfig,
-    vocabulary: Vocabulary,
+    dictionary: Dictionary,
     bayes: BayesFilter,
     threshold: f64,
     locations: Vec<Location>,
@@ -97,7 +97,7 @@ impl Memory {
     pub fn new(cfg: &MemoryConfig, loops: &LoopClosureConfig) -> Self {
         Self {
             cfg: cfg.clone(),
-            vocabulary: Vocabulary::new(VocabularyConfig {
+            dictionary: Dictionary::new(DictionaryConfig {
                 nndr: cfg.word_nndr,
                 probe_radius: cfg.word_probe_radius,
             }),
@@ -128,7 +128,7 @@ impl Memory {
     }
 
     pub fn word_count(&self) -> usize {
-        self.vocabulary.word_count()
+        self.dictionary.word_count()
     }
 
     pub fn working_memory(&self) -> usize {
@@ -151,14 +151,14 @@ impl Memory {
     ) -> (Option<Posterior>, Option<Hypothesis>, Update) {
         let id = location.id;
         debug_assert_eq!(id, self.next_id());
-        let vocabulary_words = self.vocabulary.word_count();
+        let vocabulary_words = self.dictionary.word_count();
         let descriptors = location.features.descriptors.len();
         location.words = self
-            .vocabulary
+            .dictionary
             .add_signature(id as SignatureId, &location.features.descriptors);
         let mut update = Update {
             descriptors,
-            new_words: self.vocabulary.word_count() - vocabulary_words,
+            new_words: self.dictionary.word_count() - vocabulary_words,
             vocabulary_words,
             comparisons: descriptors as u64 * vocabulary_words as u64,
             ..Update::default()
@@ -167,7 +167,7 @@ impl Memory {
         if detect && !self.wm.is_empty() {
             let wm = &self.wm;
             let raw = self
-                .vocabulary
+                .dictionary
                 .scores(&location.words, |s| !wm.contains(&s));
             // Every WM location, with 0 for those sharing no word.
             let mut scores: Vec<(u64, f64)> = wm.iter().map(|&i| (i, 0.0)).collect();
@@ -176,7 +176,8 @@ impl Memory {
                     scores[k].1 = v;
                 }
             }
-            let (likelihood, virtual_likelihood) = slam_common::bow::adjusted_likelihood(&scores);
+            let (likelihood, virtual_likelihood) =
+                slam_common::place::bow::adjusted_likelihood(&scores);
             let updated = self.bayes.update(&likelihood, virtual_likelihood);
             hypothesis = updated
                 .best()
@@ -213,7 +214,7 @@ impl Memory {
         let Some(oldest) = self.wm.pop_first() else {
             return;
         };
-        self.vocabulary.remove_signature(oldest as SignatureId);
+        self.dictionary.remove_signature(oldest as SignatureId);
         self.bayes.remove(oldest);
         self.ltm += 1;
     }

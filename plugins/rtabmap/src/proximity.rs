@@ -7,7 +7,7 @@
 
 use nalgebra::{Isometry2, Vector2};
 use serde::Deserialize;
-use slam_common::scan2d::{Icp2dConfig, Icp2dResult, Icp2dTarget, icp2d};
+use slam_common::registration::scan2d::{Icp2dConfig, Icp2dResult, Icp2dTarget, icp2d};
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -35,7 +35,7 @@
 use std::collections::VecDeque;
 
 use nalgebra::{Isometry2, Isometry3, Translation3, UnitQuaternion, Vector2, Vector3};
-use slam_common::scan2d::{Icp2dTarget, icp2d};
+use slam_common::registration::scan2d::{Icp2dTarget, icp2d};
 
 use crate::attitude::Tilt;
 use crate::config::{ScanOdometryConfig, YawSource};
@@ -220,7 +220,7 @@ impl ScanOdometry {
     }
 
     /// Registers a scan (points in the scan's frame, in scan order, from
-    /// [`slam_common::scan2d::points_from_ranges`]); None until the wheels have reported.
+    /// [`slam_common::registration::scan2d::points_from_ranges`]); None until the wheels have reported.
     /// Without `sweep`, all its returns count as taken at its stamp; with it, every return is
     /// first moved to where the scanner was at the stamp (motion compensation, as LOAM does with its IMU: Zhang and
     /// Singh, "LOAM: Lidar odometry and mapping in real-time", RSS 2014). The sweep of the
@@ -337,7 +337,7 @@ impl ScanOdometry {
     }
 
     fn add_key_scan(&mut self, odom_from_base: &Isometry2<f64>, in_base: &[Vector2<f64>]) {
-        let scan = slam_common::scan2d::downsample(
+        let scan = slam_common::registration::scan2d::downsample(
             &in_base
                 .iter()
                 .map(|p| (odom_from_base * nalgebra::Point2::from(*p)).coords)
@@ -362,7 +362,7 @@ impl ScanOdometry {
 }
 
 /// Which of `points` (sensor frame, in scan order, as
-/// [`slam_common::scan2d::points_from_ranges`] gives them) lie on narrow objects, to be
+/// [`slam_common::registration::scan2d::points_from_ranges`] gives them) lie on narrow objects, to be
 /// registered (see [`ScanOdometryConfig::max_segment_m`]; all of them when it is 0). The
 /// scan is cut into segments by Borges and Aldon's adaptive breakpoint detector ("Line
 /// extraction in 2D range images for mobile robotics", J. Intelligent and Robotic Systems

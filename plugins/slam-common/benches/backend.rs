@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     Backend, BackendConfig, Factor, FactrsBackend, Isam2Backend, Robust, Scope, Value, Var,
 };
 

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use slam_common::bow::{Descriptor, SignatureId, Vocabulary, VocabularyConfig};
+use slam_common::place::bow::{Descriptor, Dictionary, DictionaryConfig, SignatureId};
 
 #[path = "../tests/support/bow_route.rs"]
 mod bow_route;
@@ -36,7 +36,7 @@ const ROUTE: Route = Route {
 const VARIANTS: usize = 8;
 
 struct Setup {
-    vocabulary: Vocabulary,
+    vocabulary: Dictionary,
     /// Locations added so far.
     locations: usize,
     world: Vec<Descriptor>,
@@ -44,10 +44,10 @@ struct Setup {
 
 /// A vocabulary of about `words` words from the route, with room in `world` for one more
 /// location.
-fn setup(words: usize, config: VocabularyConfig, rng: &mut ChaCha8Rng) -> Setup {
+fn setup(words: usize, config: DictionaryConfig, rng: &mut ChaCha8Rng) -> Setup {
     let locations = words / STRIDE;
     let world = ROUTE.world(locations + 1, rng);
-    let mut vocabulary = Vocabulary::new(config);
+    let mut vocabulary = Dictionary::new(config);
     let start = Instant::now();
     for k in 0..locations {
         vocabulary.add_signature(k as SignatureId, &ROUTE.location(&world, k, rng));
@@ -66,7 +66,7 @@ fn setup(words: usize, config: VocabularyConfig, rng: &mut ChaCha8Rng) -> Setup 
 }
 
 /// Times `add_signature` of each query set in turn, removing it again untimed.
-fn time_adds(vocabulary: &mut Vocabulary, sets: &[Vec<Descriptor>], iters: u64) -> Duration {
+fn time_adds(vocabulary: &mut Dictionary, sets: &[Vec<Descriptor>], iters: u64) -> Duration {
     let mut total = Duration::ZERO;
     for i in 0..iters {
         let set = &sets[i as usize % sets.len()];
@@ -85,13 +85,13 @@ fn bench(c: &mut Criterion) {
         .sample_size(20)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(4));
-    let r1 = VocabularyConfig {
+    let r1 = DictionaryConfig {
         probe_radius: 1,
-        ..VocabularyConfig::default()
+        ..DictionaryConfig::default()
     };
     for (label, words, config) in [
-        ("20k", 20_000, VocabularyConfig::default()),
-        ("100k", 100_000, VocabularyConfig::default()),
+        ("20k", 20_000, DictionaryConfig::default()),
+        ("100k", 100_000, DictionaryConfig::default()),
         ("100k-r1", 100_000, r1),
     ] {
         let Setup {

@@ -3,8 +3,9 @@
 //! detector sources), with `accumulate_cloud_num = 1` as the paper ran it; each field names
 //! the setting it comes from.
 
+use plugin_api::Parameters;
 use serde::Deserialize;
-use slam_common::backend::BackendConfig;
+use slam_common::factor_graph::backend::BackendConfig;
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -233,14 +234,7 @@ impl Default for LoopConfig {
     }
 }
 
-impl Config {
-    /// Parses the plugin's TOML and checks the values.
-    pub fn parse(text: &str) -> Result<Self, String> {
-        let cfg: Self = toml::from_str(text).map_err(|e| e.message().to_owned())?;
-        cfg.check()?;
-        Ok(cfg)
-    }
-
+impl Parameters for Config {
     fn check(&self) -> Result<(), String> {
         let i = &self.input;
         if !(i.min_range_m >= 0.0 && i.max_range_m > i.min_range_m) {
@@ -294,6 +288,7 @@ mod documented_file {
     //! The documented parameter file must say exactly what the plugin does without one, and a bad value must be refused with a message naming it.
 
     use super::Config;
+    use plugin_api::Parameters;
 
     #[test]
     fn documented_parameters_are_the_defaults() {
@@ -302,7 +297,7 @@ mod documented_file {
             "/../../configs/staticmapping.toml"
         );
         let text = std::fs::read_to_string(path).expect("configs/staticmapping.toml exists");
-        let parsed = Config::parse(&text).expect("configs/staticmapping.toml parses");
+        let parsed = Config::from_toml(&text).expect("configs/staticmapping.toml parses");
         assert_eq!(
             parsed,
             Config::default(),
@@ -312,7 +307,7 @@ mod documented_file {
 
     #[test]
     fn a_misspelt_key_is_an_error_naming_it() {
-        let err = Config::parse("[submap]\nframe_cout = 3\n").expect_err("unknown key");
+        let err = Config::from_toml("[submap]\nframe_cout = 3\n").expect_err("unknown key");
         assert!(err.contains("frame_cout"), "{err}");
     }
 
@@ -327,7 +322,7 @@ mod documented_file {
             ),
             ("[submap]\nframe_count = 0\n", "frame_count"),
         ] {
-            let err = Config::parse(text).expect_err(text);
+            let err = Config::from_toml(text).expect_err(text);
             assert!(err.contains(names), "{text}: {err}");
         }
     }

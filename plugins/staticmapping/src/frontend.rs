@@ -7,7 +7,7 @@
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
-use crate::config::{Config, FrontEndConfig};
+use crate::config::{FrontEndConfig, IcpConfig};
 use crate::icp::{self, Reference};
 use crate::input::{self, Sweep};
 
@@ -132,17 +132,20 @@ pub fn is_keyframe(keyframe_from_sweep: &Isometry3<f64>, cfg: &FrontEndConfig) -
         || (cfg.keyframe_angle_deg > 1e-3 && angle_deg >= cfg.keyframe_angle_deg)
 }
 
-/// Runs the front end over `sweeps` (in time order), each lasting `sweep_ns`.
+/// Runs the front end over `sweeps` (in time order), each lasting `sweep_ns`, with the
+/// gyroscope's samples if it uses the IMU, deskewing each sweep if `deskew`.
 pub fn run(
     sweeps: &[Sweep],
-    gyro: &[Gyro],
+    gyro: Option<&[Gyro]>,
     imu_from_lidar: UnitQuaternion<f64>,
     sweep_ns: i64,
-    cfg: &Config,
+    deskew: bool,
+    front_end: &FrontEndConfig,
+    icp_cfg: &IcpConfig,
 ) -> Odometry {
-    let gyro = cfg.use_imu.then_some(gyro).filter(|g| !g.is_empty());
+    let gyro = gyro.filter(|g| !g.is_empty());
     let sweep_s = sweep_ns as f64 * 1e-9;
-    let queue_ns = (cfg.front_end.pose_queue_s * 1e9).round() as i64;
+    let queue_ns = (front_end.pose_queue_s * 1e9).round() as i64;
     let mut extrapolator = Extrapolator::new(imu_from_lidar, queue_ns);
     let mut out = Odometry::default();
     let mut reference: Option<Reference> = None;
@@ -150,15 +153,13 @@ pub fn run(
     let mut scored = 0usize;
     for sweep in sweeps {
         let guess = extrapolator.predict(sweep.stamp_ns, gyro);
-        let motion = cfg
-            .input
-            .deskew
-            .then(|| guess.inverse() * extrapolator.predict(sweep.stamp_ns + sweep_ns, gyro));
+        let motion =
+            deskew.then(|| guess.inverse() * extrapolator.predict(sweep.stamp_ns + sweep_ns, gyro));
         let cloud = input::deskew(sweep, motion.as_ref(), sweep_s);
         let pose = match (out.keyframes.last(), &reference) {
             (Some(kf), Some(target)) => {
                 let kf_from_guess = kf.world_from_lidar.inverse() * guess;
-                match icp::align(&cloud, target, &kf_from_guess, &cfg.icp) {
+                match icp::align(&cloud, target, &kf_from_guess, icp_cfg) {
                     Some(a) => {
                         score_sum += a.score;
                         scored += 1;
@@ -175,10 +176,10 @@ pub fn run(
         extrapolator.add(sweep.stamp_ns, pose);
         let new_keyframe = match out.keyframes.last() {
             None => true,
-            Some(kf) => is_keyframe(&(kf.world_from_lidar.inverse() * pose), &cfg.front_end),
+            Some(kf) => is_keyframe(&(kf.world_from_lidar.inverse() * pose), front_end),
         };
         if new_keyframe {
-            reference = Some(Reference::new(&cloud, cfg.icp.knn_normal));
+            reference = Some(Reference::new(&cloud, icp_cfg.knn_normal));
             out.keyframes.push(Keyframe {
                 stamp_ns: sweep.stamp_ns,
                 world_from_lidar: pose,

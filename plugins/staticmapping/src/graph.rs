@@ -3,7 +3,7 @@
 //! submaps (`frame_match_noise_model_`) and for loops (`loop_closure_noise_model_`).
 
 use nalgebra::{Isometry3, Vector6};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, Profiled, Robust, Scope, Value, Var,
 };
 

@@ -19,8 +19,8 @@
 
 use nalgebra::{Isometry3, Matrix3, Point3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
-use slam_common::kdtree::KdTree3;
-use slam_common::lsq::{NormalEquations, apply};
+use slam_common::motion::lsq::{NormalEquations, apply};
+use slam_common::registration::kdtree::KdTree3;
 
 use crate::config::IcpConfig;
 

@@ -2,7 +2,7 @@
 //!
 //! 1. candidates: submaps older than `ignore_recent` submaps whose (optimised) position is
 //!    within `max_distance_m` horizontally and `max_z_distance_m` vertically;
-//! 2. of these, those whose M2DP descriptor ([`slam_common::m2dp`]) is similar enough; up
+//! 2. of these, those whose M2DP descriptor ([`slam_common::place::m2dp`]) is similar enough; up
 //!    to `candidates` of them spread evenly over the matches, plus the nearest candidate if
 //!    it lies within 40 % of `max_distance_m`;
 //! 3. a detection must persist: verification starts at the second consecutive submap with
@@ -15,10 +15,13 @@
 //!    same place: within `agree_m` and `agree_rad` of the first edge's.
 
 use nalgebra::{Isometry3, Vector3};
-use slam_common::m2dp::Descriptor;
+use plugin_api::{Event, EventKind, PluginError, Stages};
+use slam_common::place::m2dp::Descriptor;
 
-use crate::config::{DescriptorVariant, LoopConfig};
+use crate::config::{DescriptorVariant, IcpConfig, LoopConfig};
+use crate::graph::SubmapGraph;
 use crate::icp::{self, Reference};
+use crate::submap::Submap;
 
 /// The detector's state (`LoopStatus`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -150,7 +153,7 @@ pub fn verify(
     target_reference: &Reference,
     world_from_target: &Isometry3<f64>,
     loop_cfg: &LoopConfig,
-    icp_cfg: &crate::config::IcpConfig,
+    icp_cfg: &IcpConfig,
 ) -> Result<Edge, Option<f64>> {
     let mut guess = world_from_target.inverse() * world_from_current;
     guess.translation.vector.z = 0.0;
@@ -245,5 +248,146 @@ mod tests {
             agree(&good[..1], world, &cfg).is_err(),
             "one edge is not enough"
         );
+    }
+}
+
+/// What loop closing did over a build (`timing_json`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoopCounts {
+    /// Submaps with detected candidates.
+    pub detections: usize,
+    /// Candidates verified by ICP.
+    pub verifications: usize,
+    /// Verified edges.
+    pub edges_verified: usize,
+    /// Loops whose edges agreed, added to the graph.
+    pub accepted: usize,
+    /// Edges of the accepted loops.
+    pub edges_added: usize,
+    /// Loops whose edges disagreed.
+    pub rejected: usize,
+}
+
+/// Steps 1 to 5 over the submaps, one at a time as each joins the graph; every loop
+/// accepted or rejected is an event.
+#[derive(Debug)]
+pub struct LoopCloser<'a> {
+    cfg: &'a LoopConfig,
+    icp_cfg: &'a IcpConfig,
+    submaps: &'a [Submap],
+    descriptors: &'a [Option<Descriptor>],
+    lidar_from_base: Isometry3<f64>,
+    persistence: Persistence,
+    pub events: Vec<Event>,
+    pub counts: LoopCounts,
+}
+
+impl<'a> LoopCloser<'a> {
+    pub fn new(
+        cfg: &'a LoopConfig,
+        icp_cfg: &'a IcpConfig,
+        submaps: &'a [Submap],
+        descriptors: &'a [Option<Descriptor>],
+        lidar_from_base: Isometry3<f64>,
+    ) -> Self {
+        Self {
+            cfg,
+            icp_cfg,
+            submaps,
+            descriptors,
+            lidar_from_base,
+            persistence: Persistence::default(),
+            events: Vec::new(),
+            counts: LoopCounts::default(),
+        }
+    }
+
+    /// Detects, verifies and adds the loops of submap `i`, just added to `graph`; the time
+    /// of detection, verification and the graph's update goes to `stages` ("m2dp",
+    /// "verification", "back_end").
+    pub fn close(
+        &mut self,
+        i: usize,
+        graph: &mut SubmapGraph,
+        stages: &mut Stages,
+    ) -> Result<(), PluginError> {
+        let (lc, submaps) = (self.cfg, self.submaps);
+        let positions: Vec<Vector3<f64>> =
+            (0..=i).map(|k| graph.pose(k).translation.vector).collect();
+        let pairs = stages.time("m2dp", || {
+            candidates(i, &positions, &self.descriptors[..=i], lc)
+        });
+        self.counts.detections += usize::from(!pairs.is_empty());
+        if !self.persistence.step(!pairs.is_empty(), 1) {
+            return Ok(());
+        }
+        let edges = stages.time("verification", || {
+            let here = graph.pose(i);
+            let mut edges = Vec::new();
+            for &j in &pairs {
+                self.counts.verifications += 1;
+                let target = &submaps[j];
+                if let Ok(edge) = verify(
+                    &submaps[i].cloud,
+                    &here,
+                    j,
+                    &target.reference,
+                    &graph.pose(j),
+                    lc,
+                    self.icp_cfg,
+                ) {
+                    edges.push(edge);
+                }
+            }
+            edges
+        });
+        self.counts.edges_verified += edges.len();
+        if edges.is_empty() {
+            return Ok(());
+        }
+        let stamp = submaps[i].stamp_ns;
+        match agree(&edges, |k| graph.pose(k), lc) {
+            Ok(()) => {
+                let base_from_lidar = self.lidar_from_base.inverse();
+                for e in &edges {
+                    self.events.push(
+                        Event::loop_closure(
+                            stamp,
+                            EventKind::LoopClosureAccepted,
+                            [stamp, submaps[e.target].stamp_ns],
+                            format!(
+                                "submap {i} to submap {} (score {:.3}, {} agreeing edges)",
+                                e.target,
+                                e.score,
+                                edges.len()
+                            ),
+                        )
+                        .with_relative_pose(
+                            &(base_from_lidar * e.target_from_current * self.lidar_from_base),
+                        ),
+                    );
+                }
+                self.counts.accepted += 1;
+                self.counts.edges_added += edges.len();
+                stages
+                    .time("back_end", || {
+                        graph.add_loops(i, edges.iter().map(|e| (e.target, e.target_from_current)))
+                    })
+                    .map_err(|e| PluginError::new(format!("backend: {e}")))?;
+            }
+            Err((m, rad)) => {
+                self.counts.rejected += 1;
+                self.events.push(Event::loop_closure(
+                    stamp,
+                    EventKind::LoopClosureRejected,
+                    [stamp, submaps[edges[0].target].stamp_ns],
+                    format!(
+                        "submap {i}: {} verified edges disagree by {m:.3} m, {rad:.4} rad",
+                        edges.len()
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 }

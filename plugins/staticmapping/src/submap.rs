@@ -4,9 +4,9 @@
 //! `accepted_min_score` keeps the front end's pose (`MapBuilder::SubmapPairMatch`).
 
 use nalgebra::{Isometry3, Point3, Vector3};
-use slam_common::voxel::downsample;
+use slam_common::registration::voxel::downsample;
 
-use crate::config::Config;
+use crate::config::{IcpConfig, SubmapConfig};
 use crate::frontend::Keyframe;
 use crate::icp::{self, Reference};
 
@@ -24,9 +24,9 @@ pub struct Submap {
 }
 
 /// Groups the keyframes into submaps of `frame_count`.
-pub fn build(keyframes: &[Keyframe], cfg: &Config) -> Vec<Submap> {
+pub fn build(keyframes: &[Keyframe], cfg: &SubmapConfig, icp_cfg: &IcpConfig) -> Vec<Submap> {
     keyframes
-        .chunks(cfg.submap.frame_count)
+        .chunks(cfg.frame_count)
         .enumerate()
         .map(|(i, frames)| {
             let origin = frames[0].world_from_lidar;
@@ -39,10 +39,10 @@ pub fn build(keyframes: &[Keyframe], cfg: &Config) -> Vec<Submap> {
                         .map(|p| (submap_from_kf * Point3::from(*p)).coords),
                 );
             }
-            let cloud = downsample(&points, cfg.submap.voxel_m);
-            let reference = Reference::new(&cloud, cfg.icp.knn_normal);
+            let cloud = downsample(&points, cfg.voxel_m);
+            let reference = Reference::new(&cloud, icp_cfg.knn_normal);
             Submap {
-                first_keyframe: i * cfg.submap.frame_count,
+                first_keyframe: i * cfg.frame_count,
                 stamp_ns: frames[0].stamp_ns,
                 odometry_pose: origin,
                 cloud,
@@ -63,12 +63,17 @@ pub struct SubmapMatch {
 }
 
 /// Matches `current` to `previous` from the front end's relative pose.
-pub fn match_to_previous(previous: &Submap, current: &Submap, cfg: &Config) -> SubmapMatch {
+pub fn match_to_previous(
+    previous: &Submap,
+    current: &Submap,
+    cfg: &SubmapConfig,
+    icp_cfg: &IcpConfig,
+) -> SubmapMatch {
     let guess = previous.odometry_pose.inverse() * current.odometry_pose;
-    let a = icp::align(&current.cloud, &previous.reference, &guess, &cfg.icp);
+    let a = icp::align(&current.cloud, &previous.reference, &guess, icp_cfg);
     let score = a.map(|a| a.score);
     match a {
-        Some(a) if a.score >= cfg.submap.accepted_min_score => SubmapMatch {
+        Some(a) if a.score >= cfg.accepted_min_score => SubmapMatch {
             previous_from_current: a.reference_from_reading,
             score,
             accepted: true,

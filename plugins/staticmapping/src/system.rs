@@ -2,21 +2,21 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, Mode, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind,
-    SlamOutput, SlamSystem,
+    Event, Imu, Mode, Parameters, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind,
+    SlamOutput, SlamSystem, Stages,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
-use slam_common::m2dp::{self, Descriptor, M2dpConfig, Rings};
-use slam_common::voxel::downsample;
+use slam_common::place::m2dp::{self, Descriptor, M2dpConfig, Rings};
+use slam_common::registration::voxel::downsample;
 
 use crate::config::{Config, DescriptorVariant};
 use crate::frontend::{self, Gyro};
 use crate::graph::SubmapGraph;
 use crate::input::{self, Sweep};
-use crate::loops::{self, Persistence};
+use crate::loops::{LoopCloser, LoopCounts};
 use crate::submap::{self, Submap};
 
 /// The offline mapper: collects sweeps and gyroscope samples, builds in `finish`.
@@ -55,8 +55,37 @@ pub struct BuildReport {
     pub total_s: f64,
 }
 
-fn seconds_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64()
+impl BuildReport {
+    /// The input, the front end's counts, the loop counts and the stages' times; the
+    /// submaps' counts zero.
+    fn new(
+        sweeps: &[Sweep],
+        odometry: &frontend::Odometry,
+        loops: &LoopCounts,
+        stages: &Stages,
+        started: Instant,
+    ) -> Self {
+        Self {
+            sweeps: sweeps.len(),
+            points_kept: sweeps.iter().map(|s| s.points.len()).sum(),
+            keyframes: odometry.keyframes.len(),
+            front_end_failed_matches: odometry.failed_matches,
+            front_end_mean_score: odometry.mean_score,
+            loop_detections: loops.detections,
+            loop_verifications: loops.verifications,
+            loop_edges_verified: loops.edges_verified,
+            loops_accepted: loops.accepted,
+            loop_edges_added: loops.edges_added,
+            loops_rejected: loops.rejected,
+            front_end_s: stages.total("front_end"),
+            submaps_s: stages.total("submaps"),
+            m2dp_s: stages.total("m2dp"),
+            verification_s: stages.total("verification"),
+            back_end_s: stages.total("back_end"),
+            total_s: started.elapsed().as_secs_f64(),
+            ..Self::default()
+        }
+    }
 }
 
 impl StaticMapping {
@@ -77,84 +106,96 @@ impl StaticMapping {
         }
     }
 
-    /// The whole offline build: trajectory, map, events and the report.
+    /// StaticMapping's offline build (`docs/systems/staticmapping.md`): front-end odometry
+    /// over every sweep, keyframes grouped into submaps, an M2DP descriptor per submap, then
+    /// the pose graph, each submap linked to the one before by ICP and its loops detected,
+    /// verified and added; the trajectory and map from the optimised submaps.
     pub fn build(&mut self) -> Result<(SlamOutput, BuildReport), PluginError> {
         let started = Instant::now();
         let cfg = &self.cfg;
-        let mut report = BuildReport {
-            sweeps: self.sweeps.len(),
-            points_kept: self.sweeps.iter().map(|s| s.points.len()).sum(),
-            ..BuildReport::default()
-        };
-        let t = Instant::now();
-        let odometry = frontend::run(
-            &self.sweeps,
-            &self.gyro,
-            self.imu_from_lidar,
-            self.sweep_ns,
-            cfg,
-        );
-        report.front_end_s = seconds_since(t);
-        report.keyframes = odometry.keyframes.len();
-        report.front_end_failed_matches = odometry.failed_matches;
-        report.front_end_mean_score = odometry.mean_score;
+        let mut stages = Stages::default();
+        let odometry = stages.time("front_end", || self.front_end());
         if odometry.keyframes.is_empty() {
             return Err(PluginError::new("no lidar sweep was received"));
         }
-
-        let t = Instant::now();
-        let submaps = submap::build(&odometry.keyframes, cfg);
-        report.submaps = submaps.len();
-        report.submaps_s += seconds_since(t);
-
-        let t = Instant::now();
-        let m2dp_cfg = self.m2dp_config();
-        let descriptors: Vec<Option<Descriptor>> = if cfg.loop_closure.enabled {
-            submaps
-                .par_iter()
-                .map(|s| m2dp::descriptor(&s.cloud, &m2dp_cfg))
-                .collect()
-        } else {
-            vec![None; submaps.len()]
-        };
-        report.m2dp_s = seconds_since(t);
-
+        let submaps = stages.time("submaps", || {
+            submap::build(&odometry.keyframes, &cfg.submap, &cfg.icp)
+        });
+        let descriptors = stages.time("m2dp", || self.describe(&submaps));
         let backend_error = |e| PluginError::new(format!("backend: {e}"));
         let mut graph = SubmapGraph::new(&cfg.backend).map_err(backend_error)?;
-        let t = Instant::now();
-        graph
-            .add_first(submaps[0].odometry_pose)
+        stages
+            .time("back_end", || graph.add_first(submaps[0].odometry_pose))
             .map_err(backend_error)?;
-        report.back_end_s += seconds_since(t);
-        let mut loops = LoopCloser {
-            cfg,
-            submaps: &submaps,
-            descriptors: &descriptors,
-            lidar_from_base: self.lidar_from_base,
-            persistence: Persistence::default(),
-            events: Vec::new(),
-        };
+        let mut loops = LoopCloser::new(
+            &cfg.loop_closure,
+            &cfg.icp,
+            &submaps,
+            &descriptors,
+            self.lidar_from_base,
+        );
+        let mut matches_accepted = 0;
         for i in 1..submaps.len() {
-            let t = Instant::now();
-            let m = submap::match_to_previous(&submaps[i - 1], &submaps[i], cfg);
-            report.submaps_s += seconds_since(t);
-            report.submap_matches_accepted += usize::from(m.accepted);
-            let t = Instant::now();
-            graph
-                .add_next(m.previous_from_current)
+            let m = stages.time("submaps", || {
+                submap::match_to_previous(&submaps[i - 1], &submaps[i], &cfg.submap, &cfg.icp)
+            });
+            matches_accepted += usize::from(m.accepted);
+            stages
+                .time("back_end", || graph.add_next(m.previous_from_current))
                 .map_err(backend_error)?;
-            report.back_end_s += seconds_since(t);
             if cfg.loop_closure.enabled {
-                loops.close(i, &mut graph, &mut report)?;
+                loops.close(i, &mut graph, &mut stages)?;
             }
         }
-        let events = loops.events;
+        let output = self.output(&odometry, &submaps, &graph, loops.events);
+        let report = BuildReport {
+            submaps: submaps.len(),
+            submap_matches_accepted: matches_accepted,
+            ..BuildReport::new(&self.sweeps, &odometry, &loops.counts, &stages, started)
+        };
+        Ok((output, report))
+    }
 
+    /// The front end over every sweep, with the gyroscope if the IMU is used.
+    fn front_end(&self) -> frontend::Odometry {
+        let cfg = &self.cfg;
+        frontend::run(
+            &self.sweeps,
+            cfg.use_imu.then_some(&self.gyro[..]),
+            self.imu_from_lidar,
+            self.sweep_ns,
+            cfg.input.deskew,
+            &cfg.front_end,
+            &cfg.icp,
+        )
+    }
+
+    /// Each submap's M2DP descriptor, when loop closure is on.
+    fn describe(&self, submaps: &[Submap]) -> Vec<Option<Descriptor>> {
+        if !self.cfg.loop_closure.enabled {
+            return vec![None; submaps.len()];
+        }
+        let m2dp_cfg = self.m2dp_config();
+        submaps
+            .par_iter()
+            .map(|s| m2dp::descriptor(&s.cloud, &m2dp_cfg))
+            .collect()
+    }
+
+    /// The trajectory (every sweep's pose, carried by its submap's optimised pose) and the
+    /// map (the optimised submaps' clouds, voxel-filtered).
+    fn output(
+        &self,
+        odometry: &frontend::Odometry,
+        submaps: &[Submap],
+        graph: &SubmapGraph,
+        events: Vec<Event>,
+    ) -> SlamOutput {
         let trajectory = odometry
             .sweeps
             .iter()
             .map(|&(stamp_ns, world_from_lidar, kf)| {
-                let s = kf / cfg.submap.frame_count;
+                let s = kf / self.cfg.submap.frame_count;
                 let submap_from_lidar = submaps[s].odometry_pose.inverse() * world_from_lidar;
                 Pose::new(
                     stamp_ns,
@@ -167,121 +208,16 @@ impl StaticMapping {
             let pose = graph.pose(k);
             points.extend(s.cloud.iter().map(|p| (pose * Point3::from(*p)).coords));
         }
-        let map = downsample(&points, cfg.submap.map_voxel_m)
+        let map = downsample(&points, self.cfg.submap.map_voxel_m)
             .into_iter()
             .map(|p| [p.x as f32, p.y as f32, p.z as f32])
             .collect();
-        report.total_s = seconds_since(started);
-        Ok((
-            SlamOutput {
-                trajectory,
-                map: Some(map),
-                grid: None,
-                events,
-            },
-            report,
-        ))
-    }
-}
-
-/// Loop detection, verification and insertion over the submaps, one at a time.
-struct LoopCloser<'a> {
-    cfg: &'a Config,
-    submaps: &'a [Submap],
-    descriptors: &'a [Option<Descriptor>],
-    lidar_from_base: Isometry3<f64>,
-    persistence: Persistence,
-    events: Vec<Event>,
-}
-
-impl LoopCloser<'_> {
-    /// Detects, verifies and adds the loops of submap `i`, just added to `graph`.
-    fn close(
-        &mut self,
-        i: usize,
-        graph: &mut SubmapGraph,
-        report: &mut BuildReport,
-    ) -> Result<(), PluginError> {
-        let (cfg, submaps, descriptors) = (self.cfg, self.submaps, self.descriptors);
-        let lidar_from_base = &self.lidar_from_base;
-        let (persistence, events) = (&mut self.persistence, &mut self.events);
-        let lc = &cfg.loop_closure;
-        let positions: Vec<Vector3<f64>> =
-            (0..=i).map(|k| graph.pose(k).translation.vector).collect();
-        let t = Instant::now();
-        let pairs = loops::candidates(i, &positions, &descriptors[..=i], lc);
-        report.m2dp_s += seconds_since(t);
-        report.loop_detections += usize::from(!pairs.is_empty());
-        if !persistence.step(!pairs.is_empty(), 1) {
-            return Ok(());
+        SlamOutput {
+            trajectory,
+            map: Some(map),
+            grid: None,
+            events,
         }
-        let t = Instant::now();
-        let here = graph.pose(i);
-        let mut edges = Vec::new();
-        for &j in &pairs {
-            report.loop_verifications += 1;
-            if let Ok(edge) = loops::verify(
-                &submaps[i].cloud,
-                &here,
-                j,
-                &submaps[j].reference,
-                &graph.pose(j),
-                lc,
-                &cfg.icp,
-            ) {
-                edges.push(edge);
-            }
-        }
-        report.verification_s += seconds_since(t);
-        report.loop_edges_verified += edges.len();
-        if edges.is_empty() {
-            return Ok(());
-        }
-        let stamp = submaps[i].stamp_ns;
-        match loops::agree(&edges, |k| graph.pose(k), lc) {
-            Ok(()) => {
-                for e in &edges {
-                    let base_from_lidar = lidar_from_base.inverse();
-                    events.push(
-                        Event::loop_closure(
-                            stamp,
-                            EventKind::LoopClosureAccepted,
-                            [stamp, submaps[e.target].stamp_ns],
-                            format!(
-                                "submap {i} to submap {} (score {:.3}, {} agreeing edges)",
-                                e.target,
-                                e.score,
-                                edges.len()
-                            ),
-                        )
-                        .with_relative_pose(
-                            &(base_from_lidar * e.target_from_current * lidar_from_base),
-                        ),
-                    );
-                }
-                report.loops_accepted += 1;
-                report.loop_edges_added += edges.len();
-                let t = Instant::now();
-                graph
-                    .add_loops(i, edges.iter().map(|e| (e.target, e.target_from_current)))
-                    .map_err(|e| PluginError::new(format!("backend: {e}")))?;
-                report.back_end_s += seconds_since(t);
-            }
-            Err((m, rad)) => {
-                report.loops_rejected += 1;
-                let first = edges[0];
-                events.push(Event::loop_closure(
-                    stamp,
-                    EventKind::LoopClosureRejected,
-                    [stamp, submaps[first.target].stamp_ns],
-                    format!(
-                        "submap {i}: {} verified edges disagree by {m:.3} m, {rad:.4} rad",
-                        edges.len()
-                    ),
-                ));
-            }
-        }
-        Ok(())
     }
 }
 
@@ -297,11 +233,8 @@ impl SlamSystem for StaticMapping {
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
-        let cfg =
-            Config::parse(config_toml).map_err(|e| PluginError::new(format!("parameters: {e}")))?;
-        let lidar = rig
-            .first(SensorKind::Lidar)
-            .ok_or_else(|| PluginError::new("the rig has no 3D lidar"))?;
+        let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
+        let lidar = rig.require_first(SensorKind::Lidar)?;
         if lidar.rate_hz <= 0.0 {
             return Err(PluginError::new("the lidar's rate must be positive"));
         }

@@ -7,8 +7,8 @@
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Imu, PluginError, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
-    export_plugin,
+    Imu, Parameters, PluginError, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem,
+    WheelOdometry, export_plugin,
 };
 use serde::Deserialize;
 
@@ -25,6 +25,8 @@ enum YawSource {
 struct Config {
     yaw_source: YawSource,
 }
+
+impl Parameters for Config {}
 
 /// Planar dead reckoning.
 #[derive(Debug)]
@@ -62,8 +64,7 @@ impl SlamSystem for WheelOdometryBaseline {
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
-        let config: Config = toml::from_str(config_toml)
-            .map_err(|e| PluginError::new(format!("parameters: {}", e.message())))?;
+        let config = Config::from_toml(config_toml).map_err(PluginError::new)?;
         let base_r_imu = match config.yaw_source {
             YawSource::Imu => {
                 rig.first(SensorKind::Imu)

@@ -7,8 +7,8 @@
 #![allow(unsafe_code)]
 
 use plugin_api::{
-    PluginError, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
-    export_plugin,
+    Parameters, PluginError, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem,
+    WheelOdometry, export_plugin,
 };
 use serde::Deserialize;
 
@@ -31,6 +31,8 @@ struct Config {
     fault: Fault,
     after: usize,
 }
+
+impl Parameters for Config {}
 
 impl Default for Config {
     fn default() -> Self {
@@ -80,8 +82,7 @@ impl SlamSystem for FaultPlugin {
     }
 
     fn new(config_toml: &str, _rig: &Rig) -> Result<Self, PluginError> {
-        let config = toml::from_str(config_toml)
-            .map_err(|e| PluginError::new(format!("parameters: {}", e.message())))?;
+        let config = Config::from_toml(config_toml).map_err(PluginError::new)?;
         Ok(Self {
             config,
             seen: 0,

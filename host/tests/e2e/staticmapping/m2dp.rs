@@ -1,4 +1,4 @@
-//! M2DP (slam_common::m2dp) on the simulator's lidar sweeps of the first 100 s of S3, the
+//! M2DP (slam_common::place::m2dp) on the simulator's lidar sweeps of the first 100 s of S3, the
 //! serpentine through the vineyard's lanes 3 m apart: how far apart the descriptors of sweeps taken at the same place
 //! are, compared with sweeps from the same along-row position one lane over (the vineyard's
 //! perceptual aliasing) and with sweeps from elsewhere. Printed as a Markdown table for the
@@ -7,7 +7,7 @@
 use nalgebra::Vector3;
 use sim::sensors::Message;
 use sim::{SensorSet, SimConfig, Simulation};
-use slam_common::m2dp::{Descriptor, M2dpConfig, descriptor};
+use slam_common::place::m2dp::{Descriptor, M2dpConfig, descriptor};
 
 /// The part of S3 streamed, s: two lanes, enough for every class of pair.
 const ROUTE_S: f64 = 100.0;

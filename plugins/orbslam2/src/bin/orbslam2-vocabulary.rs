@@ -1,7 +1,7 @@
 //! Trains the ORB-SLAM2-style plugin's DBoW2 vocabulary on camera frames dumped by
 //! `vinebench simulate --sensors rgbd --out DIR` (TUM RGB-D layout: `rgbd/rgb.txt` lists the
 //! colour PNGs). ORB features are extracted exactly as the plugin does; the vocabulary is a
-//! hierarchical k-means++ tree (`slam_common::vocabulary`). `scripts/train-vocabulary.sh`
+//! hierarchical k-means++ tree (`slam_common::place::vocabulary`). `scripts/train-vocabulary.sh`
 //! runs the whole recipe on a world different from the benchmark's.
 //!
 //! Usage: `orbslam2-vocabulary --out FILE [--k 10] [--levels 6] [--seed 0] [--every 10] DIR...`
@@ -14,8 +14,9 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use orbslam2::orb::{OrbConfig, OrbExtractor, gray_from_rgb};
-use slam_common::vocabulary::{Descriptor, TrainConfig, Vocabulary};
+use orbslam2::orb::{OrbConfig, OrbExtractor};
+use plugin_api::gray_from_rgb;
+use slam_common::place::vocabulary::{Descriptor, TrainConfig, Vocabulary};
 
 struct Args {
     out: PathBuf,

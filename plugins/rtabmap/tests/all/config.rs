@@ -1,5 +1,6 @@
 //! The documented parameter file must say exactly what the plugin does without one.
 
+use plugin_api::Parameters;
 use rtabmap::config::Config;
 
 #[test]

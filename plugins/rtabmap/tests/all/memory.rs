@@ -1,7 +1,7 @@
 //! Memory management under the comparison limit (`Rtabmap/TimeThr` counted): working memory
 //! settles where quantising a location stays within the limit, and grows without it.
 //!
-//! The vocabulary as this plugin runs it (`slam_common::bow` at `word_probe_radius = 3`,
+//! The vocabulary as this plugin runs it (`slam_common::place::bow` at `word_probe_radius = 3`,
 //! exact within 64 bits), where quantisation settles the descriptors still undecided after
 //! the cheap probe radii by a linear scan: every word it gives is the one a brute-force
 //! scan gives, on a simulated vineyard route (slam-common's `tests/support/bow_route.rs`)
@@ -14,23 +14,23 @@ use rand_chacha::ChaCha8Rng;
 use rtabmap::config::{LoopClosureConfig, MemoryConfig};
 use rtabmap::features::Features;
 use rtabmap::memory::{Location, Memory, Update};
-use slam_common::bow::{Descriptor, SignatureId, Vocabulary, VocabularyConfig, hamming};
+use slam_common::place::bow::{Descriptor, Dictionary, DictionaryConfig, SignatureId, hamming};
 
 const ROUTE: Route = Route {
     per_location: 500,
     stride: 250,
 };
 
-/// The capped ratio test of `slam_common::bow` by brute force: the nearest word if it is
+/// The capped ratio test of `slam_common::place::bow` by brute force: the nearest word if it is
 /// nearer than `nndr · min(second, R)`.
-fn brute_force(vocabulary: &Vocabulary, q: &Descriptor) -> Option<u32> {
-    let mut all: Vec<(u32, u32)> = vocabulary
+fn brute_force(dictionary: &Dictionary, q: &Descriptor) -> Option<u32> {
+    let mut all: Vec<(u32, u32)> = dictionary
         .words()
         .map(|(word, d)| (hamming(q, d), word))
         .collect();
     all.sort_unstable();
-    let radius = vocabulary.search_radius();
-    let nndr = vocabulary.config().nndr;
+    let radius = dictionary.search_radius();
+    let nndr = dictionary.config().nndr;
     let (d1, w1) = *all.first()?;
     let d2 = all.get(1).map_or(u32::MAX, |m| m.0);
     ((d1 as f32) < nndr * d2.min(radius) as f32).then_some(w1)
@@ -39,12 +39,12 @@ fn brute_force(vocabulary: &Vocabulary, q: &Descriptor) -> Option<u32> {
 #[test]
 fn quantisation_by_scan_is_the_brute_force_result() {
     let defaults = MemoryConfig::default();
-    let mut vocabulary = Vocabulary::new(VocabularyConfig {
+    let mut dictionary = Dictionary::new(DictionaryConfig {
         nndr: defaults.word_nndr,
         probe_radius: defaults.word_probe_radius,
     });
     assert_eq!(
-        vocabulary.search_radius(),
+        dictionary.search_radius(),
         64,
         "the plugin's default radius"
     );
@@ -52,20 +52,20 @@ fn quantisation_by_scan_is_the_brute_force_result() {
     let locations = 80;
     let world = ROUTE.world(locations + 20, &mut rng);
     for k in 0..locations {
-        vocabulary.add_signature(k as SignatureId, &ROUTE.location(&world, k, &mut rng));
+        dictionary.add_signature(k as SignatureId, &ROUTE.location(&world, k, &mut rng));
     }
     // The oldest half leaves working memory, as the memory limits do: their words' slots
     // are freed, then partly reused by the next locations.
     for k in 0..locations / 2 {
-        vocabulary.remove_signature(k as SignatureId);
+        dictionary.remove_signature(k as SignatureId);
     }
     for k in locations..locations + 5 {
-        vocabulary.add_signature(k as SignatureId, &ROUTE.location(&world, k, &mut rng));
+        dictionary.add_signature(k as SignatureId, &ROUTE.location(&world, k, &mut rng));
     }
-    let scan_from = vocabulary.scan_from();
+    let scan_from = dictionary.scan_from();
     println!(
         "{} words, scanning from probe radius {scan_from:?}",
-        vocabulary.word_count()
+        dictionary.word_count()
     );
     assert!(
         scan_from.is_some(),
@@ -89,10 +89,10 @@ fn quantisation_by_scan_is_the_brute_force_result() {
         queries.push(("random", rng.random()));
     }
     let descriptors: Vec<Descriptor> = queries.iter().map(|q| q.1).collect();
-    let quantised = vocabulary.quantize(&descriptors);
+    let quantised = dictionary.quantize(&descriptors);
     let mut matched = 0;
     for ((kind, q), word) in queries.iter().zip(&quantised) {
-        assert_eq!(*word, brute_force(&vocabulary, q), "{kind} query");
+        assert_eq!(*word, brute_force(&dictionary, q), "{kind} query");
         matched += usize::from(word.is_some());
     }
     println!("{matched} of {} queries took a word", queries.len());

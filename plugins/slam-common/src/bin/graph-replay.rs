@@ -2,7 +2,7 @@
 //! pose graph through one of the shared backends and prints what it reached: GTSAM's
 //! graph error of the final estimate, time, the slowest update, and with `--groundtruth`
 //! the ATE RMSE after alignment. The formats, the priors and the replay are documented in
-//! `slam_common::posegraph`.
+//! `slam_common::factor_graph::posegraph`.
 //!
 //! A bare FILE name that does not exist is looked up in GTSAM's example data of the
 //! workspace's venv (`target/gtsam-venv/lib/python*/site-packages/gtsam/Data/`).
@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use slam_common::backend::{BackendConfig, from_config};
-use slam_common::posegraph::{self, Format};
+use slam_common::factor_graph::backend::{BackendConfig, from_config};
+use slam_common::factor_graph::posegraph::{self, Format};
 
 #[derive(Debug, Parser)]
 #[command(about = "Replay a pose-graph file through a vinebench backend")]

@@ -13,7 +13,7 @@ use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, StandardNormal};
-use slam_common::ba::{
+use slam_common::factor_graph::ba::{
     CHI2_MONO, CHI2_STEREO, Observation, Options, PoseObservation, PoseVar, Problem, StereoCamera,
     bundle_adjust, chi2, optimize_pose,
 };

@@ -6,7 +6,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     Backend, BackendConfig, BackendError, Factor, ImuBias, ImuNoise, ImuSample, Robust, Scope,
     Value, Var, from_config,
 };

@@ -9,8 +9,8 @@ use crate::bow_route;
 use bow_route::{Route, flip, landmarks, observe};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use slam_common::bow::{
-    Descriptor, SignatureId, Vocabulary, VocabularyConfig, WordId, WordMatch, adjusted_likelihood,
+use slam_common::place::bow::{
+    Descriptor, Dictionary, DictionaryConfig, SignatureId, WordId, WordMatch, adjusted_likelihood,
     hamming,
 };
 
@@ -24,7 +24,7 @@ const ROUTE: Route = Route {
 /// Adds locations `0..n` of the route (signature id = location); returns each location's
 /// words, in landmark order.
 fn drive(
-    vocabulary: &mut Vocabulary,
+    vocabulary: &mut Dictionary,
     world: &[Descriptor],
     n: usize,
     rng: &mut ChaCha8Rng,
@@ -46,7 +46,7 @@ fn argmax(scores: &[(SignatureId, f64)]) -> SignatureId {
 fn revisited_location_maps_to_its_words_and_scores_highest() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let world = ROUTE.world(41, &mut rng);
-    let mut vocabulary = Vocabulary::default();
+    let mut vocabulary = Dictionary::default();
     let words = drive(&mut vocabulary, &world, 40, &mut rng);
 
     for k in [0, 17, 39] {
@@ -84,7 +84,7 @@ fn revisited_location_maps_to_its_words_and_scores_highest() {
 fn unrelated_locations_create_new_words() {
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     let world = ROUTE.world(20, &mut rng);
-    let mut vocabulary = Vocabulary::default();
+    let mut vocabulary = Dictionary::default();
     let words = drive(&mut vocabulary, &world, 20, &mut rng);
     let newest = words.iter().flatten().max().copied().expect("words");
 
@@ -120,7 +120,7 @@ fn unrelated_locations_create_new_words() {
 fn single_word_counts_its_missing_second_neighbour_at_the_search_radius() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let d: Descriptor = rng.random();
-    let mut v = Vocabulary::default();
+    let mut v = Dictionary::default();
     let w = v.add_signature(1, &[d])[0];
     // R = 48 at the default probe radius: accept iff d₁ < 0.8 · 48 = 38.4.
     assert_eq!(v.search_radius(), 48);
@@ -145,7 +145,7 @@ fn single_word_counts_its_missing_second_neighbour_at_the_search_radius() {
 fn removing_signatures_deletes_orphan_words() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let world = ROUTE.world(3, &mut rng);
-    let mut vocabulary = Vocabulary::default();
+    let mut vocabulary = Dictionary::default();
     let words = drive(&mut vocabulary, &world, 2, &mut rng);
     assert_eq!(vocabulary.signature_count(), 2);
 
@@ -200,7 +200,7 @@ fn removing_signatures_deletes_orphan_words() {
 fn tf_idf_matches_hand_computation() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let [a, b, c, d, e]: [Descriptor; 5] = std::array::from_fn(|_| rng.random());
-    let mut v = Vocabulary::default();
+    let mut v = Dictionary::default();
     let s1 = v.add_signature(1, &[a, b]);
     let s2 = v.add_signature(2, &[flip(&a, 1, &mut rng), flip(&a, 2, &mut rng), c]);
     let s3 = v.add_signature(3, &[flip(&b, 3, &mut rng), flip(&c, 1, &mut rng), d]);
@@ -278,7 +278,7 @@ fn adjusted_likelihood_matches_hand_computation() {
 }
 
 /// The nearest and second-nearest words of a linear scan (ties to the smaller id).
-fn brute_two(vocabulary: &Vocabulary, q: &Descriptor) -> [Option<WordMatch>; 2] {
+fn brute_two(vocabulary: &Dictionary, q: &Descriptor) -> [Option<WordMatch>; 2] {
     let mut all: Vec<WordMatch> = vocabulary
         .words()
         .map(|(word, d)| WordMatch {
@@ -295,7 +295,7 @@ fn multi_index_hash_agrees_with_linear_scan() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let locations = 140;
     let world = ROUTE.world(locations + 10, &mut rng);
-    let mut vocabulary = Vocabulary::default();
+    let mut vocabulary = Dictionary::default();
     drive(&mut vocabulary, &world, locations, &mut rng);
     // Memory management: every third location leaves, then the route goes on, so the index
     // has seen deletions and reused slots.
@@ -373,7 +373,7 @@ fn deterministic() {
     let build = || {
         let mut rng = ChaCha8Rng::seed_from_u64(6);
         let world = ROUTE.world(30, &mut rng);
-        let mut vocabulary = Vocabulary::new(VocabularyConfig {
+        let mut vocabulary = Dictionary::new(DictionaryConfig {
             nndr: 0.8,
             probe_radius: 1,
         });

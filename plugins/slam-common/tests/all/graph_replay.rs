@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
-use slam_common::backend::{Factor, PoseSigmas, Robust};
-use slam_common::posegraph::{
+use slam_common::factor_graph::backend::{Factor, PoseSigmas, Robust};
+use slam_common::factor_graph::posegraph::{
     Format, PoseGraph, PoseGraphError, ate_rmse, eval, graph_error, parse,
     parse::{LIFT_SIGMA, PRIOR_SIGMAS_2D, PRIOR_SIGMAS_3D, PRIOR_SIGMAS_CITY},
     se3_log,
@@ -457,7 +457,7 @@ fn native_backends_reach_gtsams_optimum_of_pose3example() {
         })
         .collect();
     let file = dir.join("pose3example.txt");
-    let g = slam_common::posegraph::read(&file, Format::Auto).unwrap();
+    let g = slam_common::factor_graph::posegraph::read(&file, Format::Auto).unwrap();
     let at_optimum = graph_error(&g.factors(), |k| poses.get(&k).copied()).unwrap();
     assert!(
         close(at_optimum, optimum, 1e-9 * optimum),

@@ -13,7 +13,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3, Vec
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     Backend, BackendConfig, Factor, FactorId, ImuBias, ImuNoise, ImuSample, Robust, Scope, Value,
     Var, from_config,
 };

@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion, Vector
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::backend::{
+use slam_common::factor_graph::backend::{
     Backend, BackendConfig, Factor, FactorId, Robust, Scope, Value, Var, from_config,
 };
 

@@ -6,8 +6,8 @@ use nalgebra::{Isometry2, Vector2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::occupancy::{Grid, OccupancyGridBuilder, OccupancyGridConfig};
-use slam_common::scan2d::{no_return_directions, points_from_ranges};
+use slam_common::maps::occupancy::{Grid, OccupancyGridBuilder, OccupancyGridConfig};
+use slam_common::registration::scan2d::{no_return_directions, points_from_ranges};
 
 const ANGLE_MIN: f64 = -2.18;
 const ANGLE_MAX: f64 = 2.36;

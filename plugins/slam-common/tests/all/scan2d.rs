@@ -6,7 +6,9 @@ use nalgebra::{Isometry2, Vector2};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use slam_common::scan2d::{Icp2dConfig, Icp2dTarget, TargetFeature, icp2d, points_from_ranges};
+use slam_common::registration::scan2d::{
+    Icp2dConfig, Icp2dTarget, TargetFeature, icp2d, points_from_ranges,
+};
 
 const ANGLE_MIN: f64 = -2.18;
 const ANGLE_MAX: f64 = 2.36;

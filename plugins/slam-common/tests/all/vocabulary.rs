@@ -13,7 +13,7 @@ use std::time::Instant;
 use bow_route::{Route, landmarks, observe};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use slam_common::vocabulary::{
+use slam_common::place::vocabulary::{
     BowVector, Descriptor, FeatureVector, NodeId, TrainConfig, Vocabulary, VocabularyError, WordId,
 };
 

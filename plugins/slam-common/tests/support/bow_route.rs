@@ -13,7 +13,7 @@ use std::ops::Range;
 use rand::Rng;
 use rand::seq::index::sample;
 use rand_chacha::ChaCha8Rng;
-use slam_common::bow::Descriptor;
+use slam_common::place::bow::Descriptor;
 
 /// `d` with `bits` distinct bits flipped.
 pub fn flip(d: &Descriptor, bits: usize, rng: &mut ChaCha8Rng) -> Descriptor {

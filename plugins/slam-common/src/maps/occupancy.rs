@@ -14,7 +14,7 @@
 //! able to change.
 //!
 //! Rays with no return (`+inf` in a ROS scan, see
-//! [`crate::scan2d::no_return_directions`]) clear free space up to
+//! [`crate::registration::scan2d::no_return_directions`]) clear free space up to
 //! [`OccupancyGridConfig::no_return_range_m`]; that is off by default, like RTAB-Map's
 //! `Grid/Scan2dUnknownSpaceFilled`, since "nothing within range" near a vine row usually
 //! means a gap in the foliage rather than 30 m of open ground. Returns beyond

@@ -1,5 +1,6 @@
-//! An incremental bag-of-words vocabulary over binary descriptors, with tf-idf scoring, for
-//! appearance-based loop-closure detection as in RTAB-Map: Labbé and Michaud,
+//! [`Dictionary`]: an incremental bag-of-words dictionary of binary words (RTAB-Map's visual
+//! word dictionary; a trained, hierarchical vocabulary is [`super::Vocabulary`]), with tf-idf
+//! scoring, for appearance-based loop-closure detection as in RTAB-Map: Labbé and Michaud,
 //! "Appearance-Based Loop Closure Detection for Online Large-Scale and Long-Term Operation",
 //! IEEE Transactions on Robotics 29(3), 2013, and "Memory management for real-time
 //! appearance-based loop closure detection", IEEE/RSJ IROS 2011.
@@ -10,8 +11,8 @@
 //! descriptor of a new location (a *signature*) either takes the nearest existing word or
 //! becomes a word itself. A descriptor takes its nearest word `w₁` (at Hamming distance `d₁`)
 //! when it passes Lowe's nearest-neighbour distance ratio test against the second-nearest
-//! word (`d₂`): `d₁ < nndr · d₂` ([`VocabularyConfig::nndr`], RTAB-Map's `Kp/NndrRatio`).
-//! The search is exact out to a radius `R` ([`Vocabulary::search_radius`]) and certifies that
+//! word (`d₂`): `d₁ < nndr · d₂` ([`DictionaryConfig::nndr`], RTAB-Map's `Kp/NndrRatio`).
+//! The search is exact out to a radius `R` ([`Dictionary::search_radius`]) and certifies that
 //! nothing else lies nearer than `R`, so the test actually applied is
 //!
 //! > accept `w₁` ⇔ `d₁ < nndr · min(d₂, R)`, with `d₂ = ∞` when the vocabulary holds a
@@ -37,7 +38,7 @@
 //!
 //! # Scores and likelihood
 //!
-//! [`Vocabulary::scores`] is the tf-idf vote of Sivic and Zisserman ("Video Google", ICCV
+//! [`Dictionary::scores`] is the tf-idf vote of Sivic and Zisserman ("Video Google", ICCV
 //! 2003) as RTAB-Map computes its raw likelihood: for every distinct word `w` of the query,
 //! every considered signature `j` holding it receives `(n_wj / n_j) · ln(N / n_w)`, where
 //! `n_wj` is how many of `j`'s descriptors were quantised to `w`, `n_j` is `j`'s number of
@@ -68,7 +69,7 @@
 //! every such word: the search is *exact* within `R = 16(r + 1)`. Substrings of 16 bits ≈
 //! log₂ of the vocabulary size is the paper's recommended choice, keeping buckets at about
 //! one word. The search proceeds by increasing `r` (0, 1, … up to
-//! [`VocabularyConfig::probe_radius`]) and stops as soon as the ratio test's outcome is
+//! [`DictionaryConfig::probe_radius`]) and stops as soon as the ratio test's outcome is
 //! certain: a re-observed word (a few bits away, nearest well inside 16 bits) is settled by
 //! the 16 exact-key probes of `r = 0`; a descriptor matching nothing costs the full
 //! `16 · Σ_{s≤r} C(16, s)` probes (2192 at the default `r = 2`). This was preferred to
@@ -82,10 +83,10 @@
 //! in 4 MiB of tables, and meets about 14 % of the vocabulary's entries, each read at a
 //! random place too — more than a linear scan of every word, which reads them in order.
 //! (Exact search at a quarter of the bits is in the regime where Norouzi et al.'s own
-//! analysis gives no sublinear cost.) So [`Vocabulary::quantize`] probes by increasing
+//! analysis gives no sublinear cost.) So [`Dictionary::quantize`] probes by increasing
 //! radius only while probing is cheap, and settles the descriptors still undecided by one
 //! linear scan of the vocabulary for all of them at once, block by block so that each block
-//! of descriptors is read once from memory ([`Vocabulary::scan_from`] says where it
+//! of descriptors is read once from memory ([`Dictionary::scan_from`] says where it
 //! switches). Both are exact within `R`, so the quantisation is the same word for word; only
 //! the time differs. RTAB-Map offers the same two kinds of search for its dictionary
 //! (`Kp/NNStrategy`: FLANN structures, or `kNNBruteForce`, a linear scan).
@@ -94,6 +95,10 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 use serde::Deserialize;
+
+mod index;
+
+use index::*;
 
 /// A 256-bit binary descriptor (BRIEF, ORB), compared by Hamming distance.
 pub type Descriptor = [u8; 32];
@@ -104,31 +109,8 @@ pub type SignatureId = u64;
 
 /// Bits in a [`Descriptor`].
 pub const DESCRIPTOR_BITS: u32 = 256;
-/// The largest accepted [`VocabularyConfig::probe_radius`].
+/// The largest accepted [`DictionaryConfig::probe_radius`].
 pub const MAX_PROBE_RADIUS: u32 = 3;
-
-/// Substrings (and hash tables) of the multi-index hash.
-const SUBSTRINGS: usize = 16;
-/// Bits per substring.
-const SUBSTRING_BITS: u32 = 16;
-/// Buckets per table.
-const BUCKETS: usize = 1 << SUBSTRING_BITS;
-/// End of a bucket's list.
-const NIL: u32 = u32::MAX;
-/// Seed of the fixed bit permutation (any constant; it only has to never change).
-const PERMUTATION_SEED: u64 = 0x424f_575f_4d49_4821; // "BOW_MIH!"
-/// Cost of probing one bucket (a read of its head, at a random place in 4 MiB of tables),
-/// in units of one distance of a linear scan. Sets only the choice between probing and
-/// scanning ([`Vocabulary::quantize`]), never a result.
-const PROBE_COST: f64 = 3.0;
-/// Cost of one entry met in a probed bucket (its links and descriptor read at a random
-/// place, a distance), in the same units.
-const ENTRY_COST: f64 = 6.0;
-/// A quantisation scans instead of probing farther once the probes made per query would
-/// exceed this share of a scan (module documentation).
-const PROBE_SHARE_OF_SCAN: f64 = 0.125;
-/// Slots per block of a linear scan: 1024 descriptors, 32 KiB.
-const SCAN_BLOCK: usize = 1024;
 
 /// Hamming distance between two descriptors.
 pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
@@ -142,10 +124,10 @@ pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
         .sum()
 }
 
-/// Parameters of a [`Vocabulary`].
+/// Parameters of a [`Dictionary`].
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct VocabularyConfig {
+pub struct DictionaryConfig {
     /// Nearest-neighbour distance ratio: a descriptor takes its nearest word only if that
     /// word is nearer than `nndr` times the second-nearest (RTAB-Map's `Kp/NndrRatio`,
     /// default 0.8). In (0, 1].
@@ -158,7 +140,7 @@ pub struct VocabularyConfig {
     pub probe_radius: u32,
 }
 
-impl Default for VocabularyConfig {
+impl Default for DictionaryConfig {
     fn default() -> Self {
         Self {
             nndr: 0.8,
@@ -173,307 +155,6 @@ pub struct WordMatch {
     pub word: WordId,
     /// Hamming distance to the query.
     pub distance: u32,
-}
-
-/// A descriptor stored aligned to 32 bytes so that it never straddles a cache line.
-#[derive(Clone, Copy)]
-#[repr(align(32))]
-struct Aligned(Descriptor);
-
-/// The two best candidates seen so far, ordered by (distance, word id); empty entries have
-/// distance `u32::MAX` and slot `NIL`.
-#[derive(Clone, Copy)]
-struct Best {
-    distance: [u32; 2],
-    word: [WordId; 2],
-    slot: [u32; 2],
-}
-
-impl Best {
-    const EMPTY: Self = Self {
-        distance: [u32::MAX; 2],
-        word: [WordId::MAX; 2],
-        slot: [NIL; 2],
-    };
-
-    fn offer(&mut self, distance: u32, word: WordId, slot: u32) {
-        if (distance, word) < (self.distance[0], self.word[0]) {
-            self.distance = [distance, self.distance[0]];
-            self.word = [word, self.word[0]];
-            self.slot = [slot, self.slot[0]];
-        } else if (distance, word) < (self.distance[1], self.word[1]) {
-            self.distance[1] = distance;
-            self.word[1] = word;
-            self.slot[1] = slot;
-        }
-    }
-
-    fn get(&self, i: usize) -> Option<WordMatch> {
-        (self.slot[i] != NIL).then(|| WordMatch {
-            word: self.word[i],
-            distance: self.distance[i],
-        })
-    }
-}
-
-/// Multi-index hashing over 256-bit codes with insertion and deletion (see the module
-/// documentation). Entries live in slots, reused after deletion.
-#[derive(Clone)]
-struct HammingIndex {
-    /// For each descriptor bit (byte `b / 8`, bit `b % 8`): its substring and its bit there.
-    bit_map: [(u8, u8); DESCRIPTOR_BITS as usize],
-    /// `masks[s]`: the 16-bit masks of exactly `s` bits, ascending, for `s ≤ probe radius`.
-    masks: Vec<Vec<u16>>,
-    /// First slot of every bucket, table-major (`t · BUCKETS + key`); allocated on the first
-    /// insertion.
-    heads: Vec<u32>,
-    /// Next and previous slot in a bucket's list, slot-major (`slot · SUBSTRINGS + t`).
-    next: Vec<u32>,
-    prev: Vec<u32>,
-    descriptors: Vec<Aligned>,
-    /// The word held by each slot (stale for free slots).
-    words: Vec<WordId>,
-    /// Whether each slot holds a word (free slots keep a stale descriptor, which a scan
-    /// passes over).
-    live: Vec<bool>,
-    /// Free slots, reused last-freed first.
-    free: Vec<u32>,
-}
-
-impl HammingIndex {
-    fn new(probe_radius: u32) -> Self {
-        // Fisher–Yates with splitmix64: position i of the permutation goes to substring
-        // i / 16, bit i % 16.
-        let mut order: Vec<usize> = (0..DESCRIPTOR_BITS as usize).collect();
-        let mut state = PERMUTATION_SEED;
-        for i in (1..order.len()).rev() {
-            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^= z >> 31;
-            order.swap(i, (z % (i as u64 + 1)) as usize);
-        }
-        let mut bit_map = [(0u8, 0u8); DESCRIPTOR_BITS as usize];
-        for (position, &bit) in order.iter().enumerate() {
-            bit_map[bit] = (
-                (position / SUBSTRING_BITS as usize) as u8,
-                (position % SUBSTRING_BITS as usize) as u8,
-            );
-        }
-        let masks = (0..=probe_radius)
-            .map(|s| {
-                (0..=u16::MAX)
-                    .filter(|m| m.count_ones() == s)
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        Self {
-            bit_map,
-            masks,
-            heads: Vec::new(),
-            next: Vec::new(),
-            prev: Vec::new(),
-            descriptors: Vec::new(),
-            words: Vec::new(),
-            live: Vec::new(),
-            free: Vec::new(),
-        }
-    }
-
-    /// Exactness radius `R`: every entry nearer than this to a query is examined.
-    fn radius(&self) -> u32 {
-        SUBSTRING_BITS * self.masks.len() as u32
-    }
-
-    fn keys(&self, d: &Descriptor) -> [u16; SUBSTRINGS] {
-        let mut keys = [0u16; SUBSTRINGS];
-        for (i, &byte) in d.iter().enumerate() {
-            let mut b = byte;
-            while b != 0 {
-                let (t, p) = self.bit_map[i * 8 + b.trailing_zeros() as usize];
-                keys[t as usize] |= 1 << p;
-                b &= b - 1;
-            }
-        }
-        keys
-    }
-
-    fn insert(&mut self, d: &Descriptor, word: WordId) -> u32 {
-        if self.heads.is_empty() {
-            self.heads = vec![NIL; SUBSTRINGS * BUCKETS];
-        }
-        let slot = match self.free.pop() {
-            Some(slot) => {
-                self.descriptors[slot as usize] = Aligned(*d);
-                self.words[slot as usize] = word;
-                self.live[slot as usize] = true;
-                slot
-            }
-            None => {
-                let slot = u32::try_from(self.descriptors.len())
-                    .ok()
-                    .filter(|&s| s != NIL)
-                    .expect("fewer than 2³² − 1 live words");
-                self.descriptors.push(Aligned(*d));
-                self.words.push(word);
-                self.live.push(true);
-                self.next.extend([NIL; SUBSTRINGS]);
-                self.prev.extend([NIL; SUBSTRINGS]);
-                slot
-            }
-        };
-        for (t, key) in self.keys(d).into_iter().enumerate() {
-            let head = &mut self.heads[t * BUCKETS + key as usize];
-            let old = std::mem::replace(head, slot);
-            let link = slot as usize * SUBSTRINGS + t;
-            self.next[link] = old;
-            self.prev[link] = NIL;
-            if old != NIL {
-                self.prev[old as usize * SUBSTRINGS + t] = slot;
-            }
-        }
-        slot
-    }
-
-    fn remove(&mut self, slot: u32) {
-        let keys = self.keys(&self.descriptors[slot as usize].0);
-        for (t, key) in keys.into_iter().enumerate() {
-            let link = slot as usize * SUBSTRINGS + t;
-            let (p, n) = (self.prev[link], self.next[link]);
-            if p == NIL {
-                self.heads[t * BUCKETS + key as usize] = n;
-            } else {
-                self.next[p as usize * SUBSTRINGS + t] = n;
-            }
-            if n != NIL {
-                self.prev[n as usize * SUBSTRINGS + t] = p;
-            }
-        }
-        self.live[slot as usize] = false;
-        self.free.push(slot);
-    }
-
-    /// The two nearest entries within the radius, probing by increasing per-substring radius
-    /// `s` up to `last`; after each `s`, `done(best, bound)` is asked whether to stop,
-    /// knowing that every entry nearer than `bound = 16(s + 1)` has been examined. Entries
-    /// at `R` or farther are never returned.
-    fn search(
-        &self,
-        q: &Descriptor,
-        last: usize,
-        mut done: impl FnMut(&Best, u32) -> bool,
-    ) -> Best {
-        let mut best = Best::EMPTY;
-        if self.heads.is_empty() {
-            return best;
-        }
-        let radius = self.radius();
-        let keys = self.keys(q);
-        for (s, masks) in self.masks.iter().enumerate().take(last + 1) {
-            for (t, &key) in keys.iter().enumerate() {
-                let table = &self.heads[t * BUCKETS..(t + 1) * BUCKETS];
-                for &mask in masks {
-                    let mut slot = table[(key ^ mask) as usize];
-                    while slot != NIL {
-                        // An entry may be met again through another substring.
-                        if slot != best.slot[0] && slot != best.slot[1] {
-                            let d = hamming(q, &self.descriptors[slot as usize].0);
-                            if d < radius && d <= best.distance[1] {
-                                best.offer(d, self.words[slot as usize], slot);
-                            }
-                        }
-                        slot = self.next[slot as usize * SUBSTRINGS + t];
-                    }
-                }
-            }
-            if done(&best, SUBSTRING_BITS * (s as u32 + 1)) {
-                break;
-            }
-        }
-        best
-    }
-
-    /// Live entries.
-    fn len(&self) -> usize {
-        self.descriptors.len() - self.free.len()
-    }
-
-    /// Estimated cost of probing per-substring radius `s` for one query, in units of one
-    /// distance of a linear scan ([`PROBE_COST`], [`ENTRY_COST`]).
-    fn probe_cost(&self, s: usize) -> f64 {
-        let probes = (SUBSTRINGS * self.masks[s].len()) as f64;
-        probes * (PROBE_COST + ENTRY_COST * self.len() as f64 / BUCKETS as f64)
-    }
-
-    /// The two nearest entries within the radius of every query, by a linear scan: exactly
-    /// what [`HammingIndex::search`] returns at the full radius. The scan runs over blocks of
-    /// [`SCAN_BLOCK`] slots, each block passed by every query while it is in cache.
-    fn scan(&self, queries: &[&Descriptor]) -> Vec<Best> {
-        let radius = self.radius();
-        let lanes: Vec<[u64; 4]> = queries.iter().map(|&q| lanes(q)).collect();
-        let mut bests = vec![Best::EMPTY; queries.len()];
-        let mut distances = [0u32; SCAN_BLOCK];
-        for (b, block) in self.descriptors.chunks(SCAN_BLOCK).enumerate() {
-            let first = b * SCAN_BLOCK;
-            let distances = &mut distances[..block.len()];
-            for (q, best) in lanes.iter().zip(&mut bests) {
-                // Distances first, in a loop of its own that the compiler can vectorise;
-                // then the few that matter (most pairs lie about 128 bits apart).
-                for (d, w) in distances.iter_mut().zip(block) {
-                    *d = lane_distance(q, &w.0);
-                }
-                for (k, &d) in distances.iter().enumerate() {
-                    let slot = first + k;
-                    if d < radius && d <= best.distance[1] && self.live[slot] {
-                        best.offer(d, self.words[slot], slot as u32);
-                    }
-                }
-            }
-        }
-        bests
-    }
-}
-
-/// A descriptor as four little-endian 64-bit lanes.
-fn lanes(d: &Descriptor) -> [u64; 4] {
-    let lane = |i: usize| u64::from_le_bytes(d[8 * i..8 * i + 8].try_into().expect("8 bytes"));
-    [lane(0), lane(1), lane(2), lane(3)]
-}
-
-/// Hamming distance between a descriptor in lanes and one in bytes.
-fn lane_distance(q: &[u64; 4], d: &Descriptor) -> u32 {
-    let w = lanes(d);
-    (q[0] ^ w[0]).count_ones()
-        + (q[1] ^ w[1]).count_ones()
-        + (q[2] ^ w[2]).count_ones()
-        + (q[3] ^ w[3]).count_ones()
-}
-
-/// Whether `d1 < nndr · d2`.
-fn ratio_accepts(d1: u32, d2: u32, nndr: f32) -> bool {
-    (d1 as f32) < nndr * d2 as f32
-}
-
-/// The outcome of the capped ratio test (module documentation) once it is certain, given
-/// that every word nearer than `bound` has been examined: `Some(true)` to accept the nearest
-/// candidate, `Some(false)` for a new word, `None` to search farther.
-fn ratio_outcome(best: &Best, bound: u32, radius: u32, nndr: f32) -> Option<bool> {
-    let (d1, d2) = (best.distance[0], best.distance[1]);
-    if d1 >= bound {
-        // No certified nearest word yet; at the full radius there is none within R.
-        return (bound >= radius).then_some(false);
-    }
-    if d2 < bound {
-        // Both certified, and d2 < R.
-        return Some(ratio_accepts(d1, d2, nndr));
-    }
-    // The true second distance is at least `bound`, so min(d2, R) ≥ bound.
-    if ratio_accepts(d1, bound, nndr) {
-        Some(true)
-    } else {
-        (bound >= radius).then_some(false)
-    }
 }
 
 /// One posting of the inverted index: a signature holding the word.
@@ -495,8 +176,8 @@ struct Signature {
 
 /// The incremental vocabulary with its inverted index (see the module documentation).
 #[derive(Clone)]
-pub struct Vocabulary {
-    config: VocabularyConfig,
+pub struct Dictionary {
+    config: DictionaryConfig,
     index: HammingIndex,
     /// Live words and their slots in the index.
     slots: BTreeMap<WordId, u32>,
@@ -506,9 +187,9 @@ pub struct Vocabulary {
     next_word: WordId,
 }
 
-impl fmt::Debug for Vocabulary {
+impl fmt::Debug for Dictionary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("Vocabulary")
+        f.debug_struct("Dictionary")
             .field("config", &self.config)
             .field("words", &self.word_count())
             .field("signatures", &self.signature_count())
@@ -517,18 +198,18 @@ impl fmt::Debug for Vocabulary {
     }
 }
 
-impl Default for Vocabulary {
+impl Default for Dictionary {
     fn default() -> Self {
-        Self::new(VocabularyConfig::default())
+        Self::new(DictionaryConfig::default())
     }
 }
 
-impl Vocabulary {
+impl Dictionary {
     /// An empty vocabulary.
     ///
     /// # Panics
     /// If `nndr` is not in (0, 1] or `probe_radius` exceeds [`MAX_PROBE_RADIUS`].
-    pub fn new(config: VocabularyConfig) -> Self {
+    pub fn new(config: DictionaryConfig) -> Self {
         assert!(
             config.nndr > 0.0 && config.nndr <= 1.0,
             "nndr must be in (0, 1], got {}",
@@ -549,7 +230,7 @@ impl Vocabulary {
         }
     }
 
-    pub fn config(&self) -> &VocabularyConfig {
+    pub fn config(&self) -> &DictionaryConfig {
         &self.config
     }
 
@@ -565,7 +246,7 @@ impl Vocabulary {
     /// documentation), otherwise it becomes a new word. All descriptors are quantised against
     /// the vocabulary as it was before this call, so they never match one another's new
     /// words; new words are numbered in descriptor order. Returns one word per descriptor.
-    /// An `id` already indexed is replaced, as by [`Vocabulary::remove_signature`] first.
+    /// An `id` already indexed is replaced, as by [`Dictionary::remove_signature`] first.
     ///
     /// # Panics
     /// If the 2³² word ids are exhausted or a signature has 2³² descriptors or more.
@@ -616,10 +297,10 @@ impl Vocabulary {
     }
 
     /// Quantises descriptors without changing anything: the word each would take in
-    /// [`Vocabulary::add_signature`], or `None` where it would become a new word.
+    /// [`Dictionary::add_signature`], or `None` where it would become a new word.
     ///
     /// Each descriptor is first looked up in the multi-index hash by increasing probe radius
-    /// while probing is cheap; those still undecided at [`Vocabulary::scan_from`] are settled
+    /// while probing is cheap; those still undecided at [`Dictionary::scan_from`] are settled
     /// by one linear scan of the vocabulary for all of them (module documentation). Both are
     /// exact within the search radius, so the choice changes the time taken, never a word.
     pub fn quantize(&self, descriptors: &[Descriptor]) -> Vec<Option<WordId>> {
@@ -651,9 +332,9 @@ impl Vocabulary {
         out
     }
 
-    /// The probe radius from which [`Vocabulary::quantize`] scans instead of probing, for the
+    /// The probe radius from which [`Dictionary::quantize`] scans instead of probing, for the
     /// vocabulary's present size; `None` when it probes all the way to
-    /// [`VocabularyConfig::probe_radius`]. It probes to the end if that costs no more per
+    /// [`DictionaryConfig::probe_radius`]. It probes to the end if that costs no more per
     /// query than a scan; otherwise it probes the radii that together cost at most
     /// [`PROBE_SHARE_OF_SCAN`] of a scan (they settle re-observed words, a few bits away)
     /// and scans for the rest. Costs are estimated from the expected bucket load.
@@ -676,7 +357,7 @@ impl Vocabulary {
         None
     }
 
-    /// The two nearest words to `d` that lie nearer than [`Vocabulary::search_radius`],
+    /// The two nearest words to `d` that lie nearer than [`Dictionary::search_radius`],
     /// nearest first (ties to the smaller id); exact, i.e. what a linear scan restricted to
     /// that radius returns.
     pub fn nearest(&self, d: &Descriptor) -> [Option<WordMatch>; 2] {
@@ -793,7 +474,7 @@ impl Vocabulary {
     }
 }
 
-/// The likelihood of Labbé and Michaud (2013) from raw [`Vocabulary::scores`]: returns
+/// The likelihood of Labbé and Michaud (2013) from raw [`Dictionary::scores`]: returns
 /// `L(S_t|L_j)` for every input entry, in input order, and the likelihood `L(S_t|S₋₁)` of
 /// the virtual "new place".
 ///

@@ -1,151 +1,7 @@
-//! `report.html`: one self-contained page per bench or sweep (styles inline, line plots
-//! as inline SVG, maps and grids as PNG data URIs, no script, nothing fetched), so it
-//! opens from disk, travels as one file and prints.
-//!
-//! A bench's page, from its folder alone ([`super::load::BenchResults`]):
-//! - the paper's Table 2 layout with real-time factor and loops accepted / false, and the
-//!   failed runs with their reasons;
-//! - per scenario the top view of every system's aligned estimate over ground truth (the
-//!   paper's Fig. 3), accepted loops as segments, true thin grey, false wider red;
-//! - per system the map of the last scenario from above, coloured by height, with its
-//!   trajectory (the paper's Fig. 4), and its occupancy grid when it writes one;
-//! - per run (folded) the translation error against time, timing (real-time factors,
-//!   latency p50 / p99 / max per kind of call, CPU time, peak memory), the accepted loops
-//!   with their judgement, and the resolved `run.toml`.
-//!
-//! A sweep's page: its axes and seeds, the aggregate table and the ATE-against-axis plots.
-//! Every byte is a function of the results (no clock), so rebuilding gives the same page.
+//! A bench's page: the table, the trajectories per scenario, the maps per system, and every
+//! run folded.
 
-use std::fmt::Write as _;
-use std::path::Path;
-
-use anyhow::Context as _;
-use eval::plot::Chart;
-
-use super::figures::{MAX_LINE_POINTS, decimate, error_chart, grid_chart, map_chart};
-use super::load::{BenchResults, LoadedRun};
-use super::plot::{LoopSegment, Track, WIDTH_PX, scenario_chart};
-use super::table::Table;
-use super::{RunStatus, markdown};
-use crate::results::aggregate::Aggregate;
-
-/// The page's file name in a results folder.
-pub const REPORT: &str = "report.html";
-const MAP_WIDTH_PX: u32 = 620;
-const RUN_WIDTH_PX: u32 = 900;
-
-const STYLE: &str = "
-body{font-family:'DejaVu Sans',Verdana,sans-serif;margin:0 auto;max-width:1280px;padding:0 24px 48px;color:#1a1a1a;line-height:1.45}
-h1{margin:24px 0 4px}h2{border-bottom:1px solid #ccc;padding-bottom:4px;margin-top:36px}
-nav a{margin-right:14px}
-.scroll{overflow-x:auto}
-table{border-collapse:collapse;font-size:13px;margin:8px 0}
-th,td{border:1px solid #d0d0d0;padding:3px 7px;text-align:right;white-space:nowrap}
-th{background:#f2f2f2}td.l,th.l{text-align:left}
-tr.rule td{border-top:2px solid #888}tr.sep th{background:#dde6ee;font-size:14px}
-td.failed{color:#b00000}
-figure{margin:12px 0}figcaption{font-size:13px;color:#444;max-width:900px}
-figure img,figure svg{max-width:100%;height:auto;border:1px solid #e4e4e4}
-.grid2{display:flex;flex-wrap:wrap;gap:16px}
-details{margin:6px 0;border:1px solid #e0e0e0;border-radius:4px;padding:4px 10px}
-summary{cursor:pointer;font-weight:bold}
-pre{background:#f7f7f7;padding:8px;overflow-x:auto;font-size:12px}
-.note{color:#555;font-size:14px}.bad{color:#b00000}.good{color:#007a33}
-";
-
-/// HTML-escaped text.
-pub(super) fn esc(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// Standard base64 with padding (RFC 4648 §4), for data URIs.
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(char::from(ALPHABET[(n >> (18 - 6 * k)) as usize & 63]));
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
-/// An id for an HTML anchor: ASCII letters and digits kept, the rest `-`.
-fn anchor(parts: &[&str]) -> String {
-    parts
-        .iter()
-        .map(|p| {
-            p.chars()
-                .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
-                .collect::<String>()
-        })
-        .collect::<Vec<_>>()
-        .join("-")
-}
-
-/// A chart as an inline SVG figure with a caption.
-fn svg_figure(chart: &Chart, width: u32, caption: &str) -> anyhow::Result<String> {
-    let svg = chart.to_svg(width)?;
-    // The page sizes the picture: keep the view box, let CSS scale it.
-    let svg = svg.replacen(
-        "<svg ",
-        &format!("<svg role=\"img\" aria-label=\"{}\" ", esc(&chart.title)),
-        1,
-    );
-    Ok(format!(
-        "<figure>{svg}<figcaption>{}</figcaption></figure>\n",
-        esc(caption)
-    ))
-}
-
-/// A chart as a PNG data-URI figure with a caption.
-fn png_figure(chart: &Chart, width: u32, caption: &str) -> anyhow::Result<String> {
-    let png = chart.to_png(width)?;
-    Ok(format!(
-        "<figure><img alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption>{}</figcaption></figure>\n",
-        esc(&chart.title),
-        base64(&png),
-        esc(caption)
-    ))
-}
-
-fn page(title: &str, body: &str) -> String {
-    format!(
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n{body}</body>\n</html>\n",
-        esc(title)
-    )
-}
-
-/// Writes `report.html` into `dir` whole (a temporary name, then renamed) and returns its
-/// size in bytes.
-pub(super) fn write_page(dir: &Path, html: &str) -> anyhow::Result<u64> {
-    let path = dir.join(REPORT);
-    let tmp = dir.join(format!(".{REPORT}.tmp"));
-    std::fs::write(&tmp, html).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, &path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(html.len() as u64)
-}
+use super::*;
 
 /// Builds and writes the report of the bench results in `dir` (titled `name`, the
 /// folder's final name); returns its size in bytes.
@@ -157,7 +13,7 @@ pub fn write_bench_report(dir: &Path, name: &str) -> anyhow::Result<u64> {
 /// The page of a bench.
 pub fn bench_page(results: &BenchResults, name: &str) -> anyhow::Result<String> {
     let records: Vec<_> = results.runs.iter().map(|r| r.record.clone()).collect();
-    let reference = super::reference::Reference::in_folder(&results.dir)?;
+    let reference = crate::report::reference::Reference::in_folder(&results.dir)?;
     let table = Table::new(&results.scenarios, &results.plugins, &records)?
         .with_reference(reference.as_ref());
     let mut body = String::new();
@@ -274,7 +130,7 @@ pub fn bench_page(results: &BenchResults, name: &str) -> anyhow::Result<String> 
 /// The paper-style table (Table 2): per scenario a block with a header row naming it,
 /// a row naming the systems and the statistic, RTF and loop rows, so that a bench of many
 /// systems stays readable without scrolling sideways; failed runs below.
-fn table_html(table: &Table) -> String {
+pub(super) fn table_html(table: &Table) -> String {
     let rows = table.rows();
     let mut h = String::from("<div class=\"scroll\"><table>\n");
     for (scenario, range) in table.groups() {
@@ -290,7 +146,7 @@ fn table_html(table: &Table) -> String {
         }
         h.push_str("</tr>\n");
         for (k, row) in rows.iter().enumerate() {
-            let class = if k == super::table::ERROR_ROWS {
+            let class = if k == crate::report::table::ERROR_ROWS {
                 " class=\"rule\""
             } else {
                 ""
@@ -331,7 +187,7 @@ fn table_html(table: &Table) -> String {
 }
 
 /// The scenario's top view with every system and its loops.
-fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow::Result<String> {
+pub(super) fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow::Result<String> {
     let runs: Vec<&LoadedRun> = results
         .runs
         .iter()
@@ -401,13 +257,13 @@ fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow::Result<Str
     )
 }
 
-fn fmt_opt(v: Option<f64>, decimals: usize) -> String {
+pub(super) fn fmt_opt(v: Option<f64>, decimals: usize) -> String {
     v.filter(|v| v.is_finite())
         .map_or_else(|| "n/a".to_owned(), |v| format!("{v:.decimals$}"))
 }
 
 /// One run, folded: status and scores in the summary line, figures and files inside.
-fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
+pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
     let r = &run.record;
     let mut h = String::new();
     let headline = match (&r.status, &r.ape) {
@@ -530,127 +386,4 @@ fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
     );
     h.push_str("</details>\n");
     Ok(h)
-}
-
-/// The page of a sweep from its aggregate and plots.
-pub fn sweep_page(name: &str, agg: &Aggregate) -> anyhow::Result<String> {
-    use super::sweep::{ate_chart, failure_lines, row_cells};
-    let mut body = String::new();
-    let _ = writeln!(body, "<h1>vinebench sweep: {}</h1>", esc(name));
-    let seeds: Vec<String> = agg.seeds.iter().map(u64::to_string).collect();
-    let _ = writeln!(
-        body,
-        "<p class=\"note\">Seeds {} ({} per cell): mean ± sample standard deviation over the seeds. ATE is the RMSE of the translation error after alignment, in metres.</p><ul>",
-        esc(&seeds.join(", ")),
-        agg.seeds.len()
-    );
-    for (path, values) in &agg.axes {
-        let _ = writeln!(
-            body,
-            "<li><code>{}</code>: {}</li>",
-            esc(path),
-            esc(&values.join(", "))
-        );
-    }
-    body.push_str("</ul>\n");
-    if agg.builds.len() > 1 {
-        let _ = writeln!(
-            body,
-            "<p class=\"bad\">The runs were made by {} different vinebench builds ({}): a change to the simulator between them would mix results.</p>",
-            agg.builds.len(),
-            esc(&agg.builds.join(", "))
-        );
-    }
-    let missing = agg.missing();
-    if missing > 0 {
-        let _ = writeln!(
-            body,
-            "<p class=\"bad\">{missing} runs are missing: the aggregate is partial.</p>"
-        );
-    }
-    for scenario in &agg.scenarios {
-        let _ = writeln!(
-            body,
-            "<section id=\"{}\"><h2>{}</h2>",
-            anchor(&["scenario", scenario]),
-            esc(scenario)
-        );
-        body.push_str("<div class=\"scroll\"><table><tr><th class=\"l\">system</th>");
-        for (path, _) in &agg.axes {
-            let _ = write!(body, "<th>{}</th>", esc(path));
-        }
-        body.push_str("<th>ok / failed / missing</th><th>ATE RMSE (m)</th><th>min</th><th>max</th><th>loops accepted</th><th>false loops</th><th>RTF</th></tr>\n");
-        for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
-            let _ = write!(body, "<tr><td class=\"l\">{}</td>", esc(&row.system));
-            for (_, v) in &row.axes {
-                let _ = write!(body, "<td>{}</td>", esc(v));
-            }
-            for cell in row_cells(row) {
-                let _ = write!(body, "<td>{}</td>", esc(&cell));
-            }
-            body.push_str("</tr>\n");
-        }
-        body.push_str("</table></div>\n");
-        for (k, (path, values)) in agg.axes.iter().enumerate() {
-            if values.len() < 2 {
-                continue;
-            }
-            if let Some(chart) = ate_chart(agg, scenario, k) {
-                body.push_str(&svg_figure(
-                    &chart,
-                    900,
-                    &format!("ATE RMSE against {path}: mean with ± one standard deviation over the seeds."),
-                )?);
-            }
-        }
-        body.push_str("</section>\n");
-    }
-    let failures = failure_lines(agg);
-    if !failures.is_empty() {
-        body.push_str("<section id=\"failed\"><h2>Failed runs</h2><ul>\n");
-        for f in failures {
-            let _ = writeln!(body, "<li class=\"bad\">{}</li>", esc(&f));
-        }
-        body.push_str("</ul></section>\n");
-    }
-    Ok(page(&format!("vinebench sweep: {name}"), &body))
-}
-
-/// Writes a sweep's `report.html` into `dir`; returns its size in bytes.
-pub fn write_sweep_report(dir: &Path, agg: &Aggregate) -> anyhow::Result<u64> {
-    let name = dir
-        .canonicalize()
-        .ok()
-        .and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .unwrap_or_else(|| "sweep".into());
-    write_page(dir, &sweep_page(&name, agg)?)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn base64_matches_rfc_4648_vectors() {
-        for (input, expected) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(base64(input.as_bytes()), expected, "{input:?}");
-        }
-    }
-
-    #[test]
-    fn text_is_escaped() {
-        assert_eq!(
-            esc("<a href=\"x\">&'"),
-            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
-        );
-        assert_eq!(anchor(&["s3", "lio sam"]), "s3-lio-sam");
-    }
 }

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use super::PoseGraphError;
-use crate::backend::{Factor, PoseSigmas, Robust};
+use crate::factor_graph::backend::{Factor, PoseSigmas, Robust};
 
 /// The SO(3) logarithm of a unit quaternion as a rotation vector, accurate near zero
 /// (angle from `atan2`, not `acos`) and with angle in [0, π].

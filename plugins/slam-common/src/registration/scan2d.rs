@@ -4,7 +4,7 @@
 //! - [`points_from_ranges`], [`no_return_directions`]: a ROS `sensor_msgs/LaserScan` as
 //!   points and as the directions of its rays that met nothing (REP 117: `+inf`);
 //! - [`downsample`]: grid thinning of a point set (RTAB-Map's `Icp/VoxelSize`);
-//! - [`KdTree2`]: the static k-d tree of [`crate::kdtree`] over 2-d points, for nearest
+//! - [`KdTree2`]: the static k-d tree of [`crate::registration::kdtree`] over 2-d points, for nearest
 //!   neighbours;
 //! - [`Icp2dTarget`], [`icp2d`]: point-to-line ICP.
 //!
@@ -35,7 +35,7 @@
 //!
 //! The update is a right perturbation `[δθ, δx, δy]` about the source sensor,
 //! `target_from_source ← target_from_source ∘ (Rot(δθ), δt)`, the convention of
-//! [`crate::lsq`] and of the backend (rotation first, perturbation in the body frame): a
+//! [`crate::motion::lsq`] and of the backend (rotation first, perturbation in the body frame): a
 //! source point `p` moves by `R (δθ p⊥ + δt)` with `p⊥ = (−p_y, p_x)`, so a residual with
 //! gradient `g` (in the target frame) has the Jacobian `[p × Rᵀg, (Rᵀg)ᵀ]`.
 //!
@@ -55,8 +55,8 @@
 use nalgebra::{Isometry2, Matrix2, Matrix3, SymmetricEigen, Vector2, Vector3};
 use serde::Deserialize;
 
-pub use crate::kdtree::KdTree2;
-use crate::kdtree::Neighbour;
+pub use crate::registration::kdtree::KdTree2;
+use crate::registration::kdtree::Neighbour;
 
 /// Points of a ROS `LaserScan` in the sensor frame: sample `i` is at angle `angle_min_rad +
 /// i · angle_increment_rad` from the x axis, counter-clockwise. Returns that are not finite
@@ -84,7 +84,7 @@ pub fn points_from_ranges(
 /// Unit directions (sensor frame) of the samples of a `LaserScan` that met nothing within
 /// range: `+inf` (REP 117) or a finite value above `range_max_m` (drivers that report
 /// `range_max + 1`). NaN (an erroneous sample) and `-inf` (too close) are not included.
-/// For [`crate::occupancy::OccupancyGridBuilder::insert_scan`].
+/// For [`crate::maps::occupancy::OccupancyGridBuilder::insert_scan`].
 pub fn no_return_directions(
     angle_min_rad: f64,
     angle_increment_rad: f64,
@@ -103,7 +103,7 @@ pub fn no_return_directions(
 }
 
 /// Grid thinning: every occupied square cell of edge `leaf_m` is replaced by the centroid of
-/// its points (the 2D form of [`crate::voxel::downsample`]). Non-finite points are dropped;
+/// its points (the 2D form of [`crate::registration::voxel::downsample`]). Non-finite points are dropped;
 /// a non-positive (or non-finite) leaf returns the others unchanged. The output is ordered
 /// by cell, so that it depends on the geometry, not on the order of the input.
 pub fn downsample(points: &[Vector2<f64>], leaf_m: f64) -> Vec<Vector2<f64>> {

@@ -5,7 +5,7 @@
 //! splits it along the axis of largest spread; small subranges are scanned linearly.
 //!
 //! One implementation for every dimension `D`: [`KdTree3`] for 3-d map points (LIO-SAM's
-//! local map, [`crate::icp`]) and [`KdTree2`] for planar scans ([`crate::scan2d`]).
+//! local map, [`crate::registration::icp`]) and [`KdTree2`] for planar scans ([`crate::registration::scan2d`]).
 //!
 //! Built once per map and queried many times, so building is a sort-like O(n log n) pass
 //! with no allocation per node, and queries keep their k best in a small sorted array.

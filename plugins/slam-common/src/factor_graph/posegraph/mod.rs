@@ -9,13 +9,13 @@
 //!   alignment in SE(3) and SE(2), ATE RMSE;
 //! - [`replay`]: incremental (pose by pose) and batch replay into a backend, with timings.
 //!
-//! [`Backend`]: crate::backend::Backend
+//! [`Backend`]: crate::factor_graph::backend::Backend
 
 use std::collections::BTreeMap;
 
 use nalgebra::Isometry3;
 
-use crate::backend::{BackendError, Factor, PoseSigmas, Robust};
+use crate::factor_graph::backend::{BackendError, Factor, PoseSigmas, Robust};
 
 pub mod eval;
 pub mod parse;

@@ -11,7 +11,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
-use crate::backend::{ImuBias, ImuSample};
+use crate::factor_graph::backend::{ImuBias, ImuSample};
 
 /// Pose and velocity of the IMU: `world_from_imu`, and velocity in the world, m/s.
 #[derive(Debug, Clone, Copy, PartialEq)]

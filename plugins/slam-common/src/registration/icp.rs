@@ -6,9 +6,9 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::geometry::fit_plane;
-use crate::kdtree::KdTree3;
-use crate::lsq::{NormalEquations, apply, converged};
+use crate::motion::geometry::fit_plane;
+use crate::motion::lsq::{NormalEquations, apply, converged};
+use crate::registration::kdtree::KdTree3;
 
 /// A target cloud ready for ICP: its k-d tree and the normal at each point where the
 /// neighbourhood is planar, fitted the first time a source point is matched to it (most
@@ -36,7 +36,7 @@ impl IcpTarget {
     fn normal(
         &mut self,
         i: usize,
-        found: &mut Vec<crate::kdtree::Neighbour>,
+        found: &mut Vec<crate::registration::kdtree::Neighbour>,
         patch: &mut Vec<Vector3<f64>>,
     ) -> Option<Vector3<f64>> {
         if let Some(n) = self.normals[i] {

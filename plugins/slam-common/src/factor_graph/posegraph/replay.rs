@@ -7,7 +7,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 
 use super::{PoseGraph, PoseGraphError, chain_from, edges_by_newest_pose, graph_error};
-use crate::backend::{Backend, Scope, Value, Var};
+use crate::factor_graph::backend::{Backend, Scope, Value, Var};
 
 /// One backend update.
 #[derive(Debug, Clone, Copy, PartialEq)]

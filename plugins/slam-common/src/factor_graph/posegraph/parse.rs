@@ -31,7 +31,7 @@
 //!   `1 0 1 1 0 0` is a covariance; it is the identity, so both readings agree.)
 //! - An edge `a b z` is `BetweenFactor(a, b, z)`: `z` is `a⁻¹·b`.
 //!
-//! Information must be diagonal: [`Factor::Between`](crate::backend::Factor) takes
+//! Information must be diagonal: [`Factor::Between`](crate::factor_graph::backend::Factor) takes
 //! diagonal sigmas, and every GTSAM benchmark graph (pose3example, sphere2500, w10000,
 //! City10000) has diagonal information, so sigmas are `1/√diag(info)` and an off-diagonal
 //! entry is an error rather than a silent approximation.
@@ -61,7 +61,7 @@ use std::path::Path;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
 use super::{Edge, PoseGraph, PoseGraphError};
-use crate::backend::PoseSigmas;
+use crate::factor_graph::backend::PoseSigmas;
 
 /// Sigma (m for z, rad for roll and pitch) of the dimensions a planar graph does not
 /// have, in its lifted edges and prior: tight against every planar sigma of the GTSAM

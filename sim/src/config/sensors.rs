@@ -1,0 +1,333 @@
+//! The sensors' configuration: ground truth, IMU, wheel odometry, 3D lidar, the two 2D
+//! scanners and the RGB-D camera, each with its rate, mount and noise.
+
+use super::*;
+
+/// Which noise a sensor adds: `typical` (a datasheet's figures) or `none` (the paper's
+/// noise-free Gazebo sensors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum NoiseProfile {
+    #[default]
+    Typical,
+    None,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorsConfig {
+    pub ground_truth: GroundTruthConfig,
+    pub imu: ImuConfig,
+    pub wheel_odometry: WheelOdometryConfig,
+    pub lidar: LidarConfig,
+    pub scan2d_front: Scan2dConfig,
+    pub scan2d_back: Scan2dConfig,
+    pub camera: CameraConfig,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroundTruthConfig {
+    pub rate_hz: f64,
+}
+
+impl Default for GroundTruthConfig {
+    fn default() -> Self {
+        Self { rate_hz: 100.0 }
+    }
+}
+
+/// IMU noise as a datasheet (or Kalibr's `imu.yaml`) states it: continuous-time densities.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ImuConfig {
+    pub rate_hz: f64,
+    pub mount: Mount,
+    pub noise: NoiseProfile,
+    /// Accelerometer white noise density, m/s²/√Hz.
+    pub accel_noise_density: f64,
+    /// Accelerometer bias random walk, m/s³/√Hz.
+    pub accel_bias_random_walk: f64,
+    /// Gyroscope white noise density, rad/s/√Hz.
+    pub gyro_noise_density: f64,
+    /// Gyroscope bias random walk, rad/s²/√Hz.
+    pub gyro_bias_random_walk: f64,
+    /// Standard deviation of the turn-on bias, per axis.
+    pub accel_bias_initial: f64,
+    pub gyro_bias_initial: f64,
+    /// `false` (ours): rates and specific force only, as a bare MEMS IMU. `true`: each
+    /// sample also carries the IMU's orientation in the world frame, the true one without
+    /// noise, as Gazebo's `gazebo_ros_imu_sensor` publishes it (`sensor_imu.xacro` in
+    /// LCAS/bacchus_lcas, branch `liosam`: `initialOrientationAsReference` false, noise 0);
+    /// LIO-SAM reads it.
+    pub reports_orientation: bool,
+}
+
+impl Default for ImuConfig {
+    fn default() -> Self {
+        // A typical MEMS IMU (figures in the range of an Xsens MTi-100 / ADIS16448).
+        Self {
+            rate_hz: 200.0,
+            mount: Mount::at(0.0, 0.0, 0.6),
+            noise: NoiseProfile::Typical,
+            accel_noise_density: 2.0e-3,
+            accel_bias_random_walk: 3.0e-4,
+            gyro_noise_density: 1.7e-4,
+            gyro_bias_random_walk: 2.0e-5,
+            accel_bias_initial: 0.02,
+            gyro_bias_initial: 1.0e-3,
+            reports_orientation: false,
+        }
+    }
+}
+
+/// Wheel odometry: velocities measured by the wheel encoders and integrated in the plane.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WheelOdometryConfig {
+    pub rate_hz: f64,
+    pub noise: NoiseProfile,
+    /// Relative error of the wheel radius (a constant scale error on speed).
+    pub scale_error: f64,
+    /// Relative error of the effective track width (a constant scale error on yaw rate).
+    pub yaw_scale_error: f64,
+    /// Standard deviation of the relative slip on flat ground.
+    pub slip_sigma: f64,
+    /// Extra relative slip per unit of terrain slope (rise over run) under the robot.
+    pub slip_per_slope: f64,
+    /// Yaw-rate noise density, rad/s/√Hz, that grows like slip with the slope.
+    pub yaw_rate_noise_density: f64,
+}
+
+impl Default for WheelOdometryConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 50.0,
+            noise: NoiseProfile::Typical,
+            scale_error: 0.01,
+            yaw_scale_error: 0.02,
+            slip_sigma: 0.01,
+            slip_per_slope: 0.5,
+            yaw_rate_noise_density: 0.002,
+        }
+    }
+}
+
+/// A spinning multi-beam lidar (defaults: Velodyne VLP-16).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LidarConfig {
+    pub rate_hz: f64,
+    pub mount: Mount,
+    pub rings: usize,
+    pub min_elevation_deg: f64,
+    pub max_elevation_deg: f64,
+    /// Firings per revolution.
+    pub columns: usize,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+    pub noise: NoiseProfile,
+    pub range_sigma_m: f64,
+    /// `false` (ours): every column fires at its own time within the sweep, from the pose
+    /// the robot has then, and its points carry that time (a real VLP-16). `true`: the
+    /// whole sweep is taken at one instant from the pose at its stamp and every point's
+    /// time is 0, as Gazebo's `gpu_ray` sensor renders it (`sensor_velodyne_vlp16.xacro`
+    /// in LCAS/bacchus_lcas, branch `liosam`): nothing to deskew, and nothing deskews.
+    pub instant_sweep: bool,
+}
+
+impl Default for LidarConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 10.0,
+            mount: Mount::at(0.0, 0.0, 1.56),
+            rings: 16,
+            min_elevation_deg: -15.0,
+            max_elevation_deg: 15.0,
+            columns: 1800,
+            min_range_m: 0.9,
+            max_range_m: 130.0,
+            noise: NoiseProfile::Typical,
+            range_sigma_m: 0.008,
+            instant_sweep: false,
+        }
+    }
+}
+
+/// A planar scanning lidar (defaults: the paper's front and back 2D lidars).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scan2dConfig {
+    pub rate_hz: f64,
+    /// `None`: the default placement of its side (front: (0.65, 0, 0.35) m looking
+    /// forward; back: (-0.65, 0, 0.35) m looking backwards).
+    pub mount: Option<Mount>,
+    pub samples: usize,
+    pub angle_min_rad: f64,
+    pub angle_max_rad: f64,
+    pub min_range_m: f64,
+    pub max_range_m: f64,
+    pub noise: NoiseProfile,
+    pub range_sigma_m: f64,
+}
+
+impl Default for Scan2dConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 40.0,
+            mount: None,
+            samples: 720,
+            angle_min_rad: -2.18,
+            angle_max_rad: 2.36,
+            min_range_m: 0.1,
+            max_range_m: 30.0,
+            noise: NoiseProfile::Typical,
+            range_sigma_m: 0.01,
+        }
+    }
+}
+
+/// An RGB-D camera (defaults: a Kinect v2 with its depth registered to a 640x480 colour
+/// image, as the paper's simulated camera). See [`crate::camera`] for the frames and the
+/// noise model.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraConfig {
+    pub rate_hz: f64,
+    /// `base_from_camera` of the camera body: x forward, y left, z up (like every other
+    /// sensor). The image's optical frame (z forward, x right, y down) is rotated from it;
+    /// see [`crate::camera::RgbdCamera::base_from_camera_optical`].
+    pub mount: Mount,
+    pub width: usize,
+    pub height: usize,
+    /// Horizontal field of view of the pinhole; square pixels, principal point at the centre.
+    pub hfov_deg: f64,
+    /// Returns nearer than this are invalid (0).
+    pub min_depth_m: f64,
+    /// Returns farther than this are invalid (0).
+    pub max_depth_m: f64,
+    /// `typical`: axial depth noise after Fankhauser et al. 2015, edge dropout, colour noise;
+    /// `none`: exact depth and colour (the paper's Gazebo camera).
+    pub noise: NoiseProfile,
+    /// σ of the zero-mean noise on each colour channel, in 8-bit levels.
+    pub rgb_sigma: f64,
+    /// A pixel whose depth differs from a 4-neighbour's by more than this fraction of its
+    /// own depth is invalidated (time-of-flight "flying pixels"); 0 disables.
+    pub edge_dropout_ratio: f64,
+    /// Sun direction: elevation above the horizon and azimuth counter-clockwise from world x.
+    pub sun_elevation_deg: f64,
+    pub sun_azimuth_deg: f64,
+    /// Cast shadows from the sun (a shadow map of the vine block, built once).
+    pub shadows: bool,
+    /// Visibility samples per pixel (coverage anti-aliasing, as the 4x MSAA of the paper's
+    /// Gazebo camera): 4 (the standard rotated-grid pattern, the default) or 8 (the
+    /// standard 8x pattern); each triangle seen by a pixel's samples is shaded once and
+    /// weighted by its coverage. 1: one sample at the pixel centre (no anti-aliasing, the
+    /// renderer before). See [`crate::camera`].
+    pub antialias_samples: usize,
+    /// Band-limit the plants' procedural materials to the pixel footprint (detail finer
+    /// than the footprint fades to its mean, thin stripes are box-filtered); `false`:
+    /// point-sampled materials, the renderer before. The ground's textures are mip-mapped
+    /// either way.
+    pub filter_materials: bool,
+    /// `None` (ours): depth is rendered with the colour image and registered to it. An
+    /// angle: depth comes from a second pinhole of this horizontal field of view at the same
+    /// optical centre and resolution (the paper's Gazebo Kinect v2: a 70° `depth` sensor
+    /// beside an 84.1° `camera` sensor, both on `kinect2_link`, `sensor_kinect_v2.xacro`
+    /// in LCAS/bacchus_lcas, branch `liosam`), delivered as `depth_registration` says.
+    pub depth_hfov_deg: Option<f64>,
+    /// With `depth_hfov_deg`: `stretched` delivers the depth image pixel for pixel as the
+    /// colour image's, under the colour intrinsics, as the paper's systems read it
+    /// (`rgbd_sync` pairs the two topics by time, nothing registers them); `registered`
+    /// reprojects it into the colour camera (pixels outside the depth camera's view: 0).
+    pub depth_registration: DepthRegistration,
+    /// `None` (ours): colour is rendered to the horizon. A distance: the colour camera's
+    /// far clip plane (optical-axis depth); beyond it the background shows (Gazebo's
+    /// `<clip><far>10.0</far>` of the Kinect's `camera` sensor).
+    pub colour_far_clip_m: Option<f64>,
+    /// What shows where no surface is seen: `"sky"` (ours: a sky gradient and a distant
+    /// tree line) or a colour `[r, g, b]` (sRGB, 0-1), uniform (Gazebo's
+    /// `<scene><background>0.7 0.7 0.7` in `vineyard_stage0_riseholme_vertical.world`,
+    /// which has no sky).
+    pub background: Background,
+}
+
+/// The camera's background: the sky, or one colour.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Background {
+    /// `"sky"`.
+    Sky(SkyTag),
+    /// `[r, g, b]`, sRGB in 0-1.
+    Rgb([f64; 3]),
+}
+
+/// The one word `"sky"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SkyTag {
+    Sky,
+}
+
+impl Default for Background {
+    fn default() -> Self {
+        Background::Sky(SkyTag::Sky)
+    }
+}
+
+/// How a separately rendered depth image is paired with the colour image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum DepthRegistration {
+    /// Depth pixel (u, v) handed over as colour pixel (u, v): the paper's pairing.
+    #[default]
+    Stretched,
+    /// Depth reprojected into the colour camera: pixel (u, v) of both sees the same ray.
+    Registered,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 30.0,
+            mount: Mount::at(0.5, 0.0, 0.66),
+            width: 640,
+            height: 480,
+            hfov_deg: 70.0,
+            min_depth_m: 0.5,
+            max_depth_m: 8.0,
+            noise: NoiseProfile::Typical,
+            rgb_sigma: 2.0,
+            edge_dropout_ratio: 0.05,
+            sun_elevation_deg: 50.0,
+            sun_azimuth_deg: 30.0,
+            shadows: true,
+            antialias_samples: 4,
+            filter_materials: true,
+            depth_hfov_deg: None,
+            depth_registration: DepthRegistration::Stretched,
+            colour_far_clip_m: None,
+            background: Background::default(),
+        }
+    }
+}
+
+/// Which end of the base a 2D scanner sits at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Front,
+    Back,
+}
+
+impl Scan2dConfig {
+    /// The configured mount, or the default placement of `side`.
+    pub fn mount_for(&self, side: Side) -> Mount {
+        self.mount.unwrap_or(match side {
+            Side::Front => Mount::at(0.65, 0.0, 0.35),
+            Side::Back => Mount {
+                xyz_m: [-0.65, 0.0, 0.35],
+                rpy_deg: [0.0, 0.0, 180.0],
+            },
+        })
+    }
+}
