@@ -939,6 +939,10 @@ fn copy_plugin_api_as(from: &Path, to: &Path, version: &str) {
         .replace("edition.workspace = true", "edition = \"2024\"")
         .replace("license.workspace = true\n", "")
         .replace("abi_stable.workspace = true", "abi_stable = \"0.11\"")
+        .replace(
+            "abi_stable_shared.workspace = true",
+            "abi_stable_shared = \"0.11\"",
+        )
         .replace("libloading.workspace = true", "libloading = \"0.7\"")
         .replace(
             "nalgebra.workspace = true",
