@@ -15,6 +15,7 @@ use std::sync::OnceLock;
 use nalgebra::Vector3;
 use opencv::core::{self, Mat, Point2f, Vector};
 use opencv::imgproc;
+use plugin_api::gray_from_rgb;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -113,7 +114,7 @@ pub fn extract(image: &Image<'_>, cfg: &FeatureConfig) -> Result<Features, Featu
             depth: image.depth_m.len(),
         });
     }
-    let gray = gray(image);
+    let gray = gray_from_rgb(image.rgb, image.width, image.height);
     let gray_mat = Mat::new_rows_cols_with_data(h as i32, w as i32, &gray)?;
     let mut corners: Vector<Point2f> = Vector::new();
     imgproc::good_features_to_track(
@@ -141,17 +142,6 @@ pub fn extract(image: &Image<'_>, cfg: &FeatureConfig) -> Result<Features, Featu
             .push(back_project(image, corner.x, corner.y, cfg));
     }
     Ok(features)
-}
-
-/// Luma (ITU-R BT.601 weights, as OpenCV's RGB to grey), row-major.
-fn gray(image: &Image<'_>) -> Vec<u8> {
-    image
-        .rgb
-        .chunks_exact(3)
-        .map(|p| {
-            ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2]) + 128) >> 8) as u8
-        })
-        .collect()
 }
 
 /// Summed-area table, `(w + 1) x (h + 1)`, row-major.
