@@ -40,6 +40,12 @@ fn main() {
             Some("-DC_ODOMETRY_ABI_VERSION=99"),
             "VINEBENCH_C_ODOMETRY_V99",
         ),
+        (
+            "c_odometry",
+            "c-plugin-revision-1",
+            Some("-DC_ODOMETRY_REVISION_1"),
+            "VINEBENCH_C_ODOMETRY_REVISION_1",
+        ),
         ("c_noop", "c-noop", None, "VINEBENCH_C_NOOP"),
     ] {
         let source = root.join(format!("tests/c-plugin/{stem}.c"));
@@ -59,6 +65,7 @@ fn main() {
                 "-O2",
                 "-std=c11",
                 "-Wall",
+                "-Wextra",
                 "-Werror",
                 "-ffp-contract=off",
             ])

@@ -3,8 +3,10 @@
 
 pub mod bench_config;
 pub mod cmd;
+pub mod conformance;
 pub mod dataset;
 pub mod dump;
+pub mod exit;
 pub mod plugins;
 pub mod report;
 pub mod results;

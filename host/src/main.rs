@@ -1,3 +1,5 @@
+use std::io::Write as _;
+
 use clap::{Parser, Subcommand};
 
 /// Benchmark SLAM systems in a simulated vineyard.
@@ -26,8 +28,11 @@ enum Command {
     Sweep(vinebench::cmd::sweep::SweepArgs),
     /// Rebuild report.html of a bench's or a sweep's results folder.
     Report(vinebench::cmd::report::ReportArgs),
-    /// List the plugins on the search path.
+    /// List the plugins on the search path, and the libraries there that fail to load.
     Plugins(vinebench::cmd::plugins::PluginsArgs),
+    /// Check that a plugin keeps the plugin contract: loads, runs a short route, and answers
+    /// malformed and edge-case input without crashing, hanging or a non-finite pose.
+    CheckPlugin(vinebench::cmd::check_plugin::CheckPluginArgs),
     /// One run in its own process (started by run and bench).
     #[command(hide = true)]
     Worker(vinebench::cmd::worker::WorkerArgs),
@@ -49,13 +54,19 @@ fn main() -> std::process::ExitCode {
         Command::SweepTask(args) => vinebench::cmd::sweep::run_task(&args),
         Command::Report(args) => vinebench::cmd::report::run(&args),
         Command::Plugins(args) => vinebench::cmd::plugins::run(&args),
+        Command::CheckPlugin(args) => vinebench::cmd::check_plugin::run(&args),
         Command::Worker(args) => vinebench::cmd::worker::run(&args),
     };
+    // Exit codes: vinebench::cmd's module documentation (and docs/cli.md).
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            let code = e
+                .downcast_ref::<vinebench::cmd::Exit>()
+                .map_or(1, |exit| exit.code);
+            // Not eprintln!: a closed standard error must not turn the exit into a panic.
+            let _ = writeln!(std::io::stderr(), "error: {e:#}");
+            std::process::ExitCode::from(code)
         }
     }
 }

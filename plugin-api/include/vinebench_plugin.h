@@ -9,10 +9,18 @@
  * in a bench file) and runs it the same way: in a worker process of its own, under the
  * run's timeout and memory limit; a crash (segfault, abort, exit) costs that run only.
  *
+ * The contract is the same through all three doors (this header, the Rust `SlamSystem`
+ * trait, the Python bridge's classes): docs/plugin-contract.md is its one table, with every
+ * call, every message field as each language sees it, the event kinds, and where a door
+ * cannot have something and why.
+ *
  * Lifecycle, in this order (the same as the Rust `SlamSystem`):
- *   1. `requirements_toml` is read before anything else: which sensors to stream;
- *   2. `create` with the plugin's parameter table (the TOML the user wrote, verbatim) and
- *      the sensor rig (TOML: every sensor's name, kind, rate, mount and datasheet figures);
+ *   1. `requirements_for(config_toml)` where the table has it (revision 2), else
+ *      `requirements_toml`, is read before anything else: which sensors to stream;
+ *   2. `create_with(info)` where the table has it (revision 2), else `create`, with the
+ *      plugin's parameter table (the TOML the user wrote, verbatim) and the sensor rig (as
+ *      TOML text and, through `create_with`, as the typed `vb_rig` with the `vb_rig_*`
+ *      accessors below: every sensor's name, kind, rate, mount and datasheet figures);
  *   3. the message callbacks, in order of availability (a lidar sweep arrives at its end,
  *      stamped at its start), one call at a time from one thread;
  *   4. `finish` once, after the last message: the final trajectory, map, grid and events;
@@ -28,21 +36,32 @@
  * line; `create` returns NULL and `last_error(NULL)` says why. The host fails the run with
  * that message.
  *
- * Versioning: the host accepts a table whose `abi_version` equals VB_ABI_VERSION. Later
- * versions only append fields at the end of `vb_plugin` (the host reads `struct_size` to
- * know which it has) and may add optional message fields at the end of a message struct.
+ * Versioning (docs/plugin-contract.md, "Versions"): `abi_version` is the major version;
+ * the host refuses a table of another one. Within it, the contract only grows by appending,
+ * and VB_ABI_REVISION counts the additions:
+ *   - `vb_plugin` gains fields at its end; the plugin's `struct_size` (sizeof(vb_plugin) of
+ *     the header it was built with) tells the host which it has, so an older plugin's
+ *     missing fields count as NULL, and a newer plugin's extra fields are not read;
+ *   - a message struct the host fills may gain fields at its end; a plugin reads a field of
+ *     revision r only when `info->abi_revision >= r` (`create_with`);
+ *   - `vb_output` may gain fields at its end; the host zeroes it before `finish`, so a
+ *     field an older plugin does not know stays 0 / NULL: absent.
+ * Revision 1: everything not marked otherwise. Revision 2: `requirements_for`,
+ * `create_with` with `vb_create_info` and the typed `vb_rig`.
  */
 #ifndef VINEBENCH_PLUGIN_H
 #define VINEBENCH_PLUGIN_H
 
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 #define VB_ABI_VERSION 1u
+#define VB_ABI_REVISION 2u
 
 /* Return values of the message callbacks and of `finish`. */
 #define VB_NO_POSE 0  /* handled; no estimate with this message */
@@ -141,13 +160,82 @@ typedef struct vb_output {
     const float *map_xyz; /* map points in the map frame, x y z each; NULL: no map */
     size_t n_map_points;
     const vb_grid *grid; /* NULL: no grid */
-    /* Events as TOML `[[events]]` tables with `stamp_ns`, `kind` ("loop_closure_accepted",
+    /* Events as TOML `[[events]]` tables with `stamp_ns`, `kind` (one of the registry's
+     * names, docs/plugin-contract.md "Event kinds": "loop_closure_accepted",
      * "loop_closure_rejected", "tracking_lost", "tracking_recovered"), `detail`, and for a
      * loop closure `loop_stamps_ns = [current, matched]` and optionally
      * `loop_relative_pose = [x, y, z, qx, qy, qz, qw]` (matched_from_current); NULL or "":
-     * none. */
+     * none. An unknown kind fails the run with a line naming it. */
     const char *events_toml;
 } vb_output;
+
+/* Revision 2: the rig, typed. One datasheet figure of a sensor, e.g. {"fx", 525.0}. */
+typedef struct vb_param {
+    const char *key; /* NUL-terminated */
+    double value;
+} vb_param;
+
+/* One sensor of the rig: the fields of the rig TOML's `[[sensors]]` table. */
+typedef struct vb_sensor {
+    const char *name; /* NUL-terminated, e.g. "lidar", "camera", "scan_front" */
+    const char *kind; /* "imu", "wheel_odometry", "lidar", "scan2d" or "rgbd" */
+    double rate_hz;
+    double base_from_sensor_xyz[3];  /* metres */
+    double base_from_sensor_xyzw[4]; /* unit quaternion (x, y, z, w) */
+    const vb_param *intrinsics;      /* geometry, e.g. rings, columns, fx, width */
+    size_t n_intrinsics;
+    const vb_param *noise; /* noise as a datasheet gives it, e.g. range_sigma_m */
+    size_t n_noise;
+} vb_sensor;
+
+typedef struct vb_rig {
+    const vb_sensor *sensors;
+    size_t n_sensors;
+} vb_rig;
+
+/* What `create_with` gets; valid for the call only (copy what you keep). */
+typedef struct vb_create_info {
+    uint32_t struct_size;  /* sizeof(vb_create_info) in the host's header */
+    uint32_t abi_revision; /* the host's VB_ABI_REVISION: which appended fields exist */
+    const char *config_toml; /* the plugin's parameter table, verbatim (NUL-terminated) */
+    const char *rig_toml;    /* the rig as TOML text, as `create` gets it */
+    const vb_rig *rig;       /* the same rig, typed */
+} vb_create_info;
+
+/* The sensor called `name`, or NULL. */
+static inline const vb_sensor *vb_rig_sensor(const vb_rig *rig, const char *name) {
+    for (size_t i = 0; rig && i < rig->n_sensors; i++)
+        if (strcmp(rig->sensors[i].name, name) == 0) return &rig->sensors[i];
+    return NULL;
+}
+
+/* The first sensor of `kind` ("lidar", "rgbd", ...), or NULL. */
+static inline const vb_sensor *vb_rig_first(const vb_rig *rig, const char *kind) {
+    for (size_t i = 0; rig && i < rig->n_sensors; i++)
+        if (strcmp(rig->sensors[i].kind, kind) == 0) return &rig->sensors[i];
+    return NULL;
+}
+
+/* Looks `key` up among `n` params: 1 and `*value` set if present, else 0. */
+static inline int vb_param_get(const vb_param *params, size_t n, const char *key,
+                               double *value) {
+    for (size_t i = 0; params && i < n; i++)
+        if (strcmp(params[i].key, key) == 0) {
+            if (value) *value = params[i].value;
+            return 1;
+        }
+    return 0;
+}
+
+/* A sensor's intrinsic (geometry) figure `key`: 1 and `*value` set if present, else 0. */
+static inline int vb_sensor_intrinsic(const vb_sensor *s, const char *key, double *value) {
+    return s ? vb_param_get(s->intrinsics, s->n_intrinsics, key, value) : 0;
+}
+
+/* A sensor's noise figure `key`: 1 and `*value` set if present, else 0. */
+static inline int vb_sensor_noise(const vb_sensor *s, const char *key, double *value) {
+    return s ? vb_param_get(s->noise, s->n_noise, key, value) : 0;
+}
 
 typedef struct vb_plugin {
     uint32_t abi_version; /* VB_ABI_VERSION */
@@ -158,6 +246,7 @@ typedef struct vb_plugin {
      * `mode = "online"` or "offline". */
     const char *requirements_toml;
 
+    /* NULL or the new system; NULL: `last_error(NULL)` says why. */
     void *(*create)(const char *config_toml, const char *rig_toml);
     void (*destroy)(void *self);
     /* The last error of `self` (NULL: of `create`), one line, UTF-8. */
@@ -170,9 +259,23 @@ typedef struct vb_plugin {
     int32_t (*on_laser_scan)(void *self, const vb_laser_scan *scan, vb_pose *estimate);
     int32_t (*on_rgbd)(void *self, const vb_rgbd_frame *frame, vb_pose *estimate);
 
-    /* 0 on success with `*output` filled, VB_ERROR on failure. */
+    /* 0 on success with `*output` filled, VB_ERROR on failure. The host zeroes `*output`
+     * before the call. */
     int32_t (*finish)(void *self, vb_output *output);
+
+    /* Revision 2 (each may be NULL, and is absent from a table whose `struct_size` ends
+     * before it). */
+    /* The requirements for this parameter table, TOML as `requirements_toml`, for a plugin
+     * whose sensors depend on its parameters; valid until the plugin's next call. NULL:
+     * failed, `last_error(NULL)` says why. Absent or NULL function: `requirements_toml`. */
+    const char *(*requirements_for)(const char *config_toml);
+    /* Creates the system as `create` does, with the rig also typed. Where present the host
+     * calls it instead of `create` (which may then be NULL). */
+    void *(*create_with)(const vb_create_info *info);
 } vb_plugin;
+
+/* sizeof(vb_plugin) of revision 1, for hosts and tests: a table of at least this size. */
+#define VB_PLUGIN_SIZE_REVISION_1 offsetof(vb_plugin, requirements_for)
 
 /* The one symbol a plugin library exports. */
 const vb_plugin *vinebench_plugin_v1(void);

@@ -15,8 +15,12 @@ use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, W
 use crate::rig::Rig;
 use crate::system::{OccupancyGrid, PluginError, Requirements, SlamOutput};
 
-/// The header's `VB_ABI_VERSION`.
+/// The header's `VB_ABI_VERSION`: the major version, the same for every table the host
+/// accepts.
 pub const ABI_VERSION: u32 = 1;
+/// The header's `VB_ABI_REVISION`: how many rounds of appended fields it has
+/// (docs/plugin-contract.md, "Versions").
+pub const ABI_REVISION: u32 = 2;
 /// The symbol a C plugin exports.
 pub const SYMBOL: &[u8] = b"vinebench_plugin_v1\0";
 
@@ -71,6 +75,44 @@ struct GridC {
     cells: *const i8,
 }
 
+/// The header's `vb_param`.
+#[repr(C)]
+struct ParamC {
+    key: *const c_char,
+    value: f64,
+}
+
+/// The header's `vb_sensor`.
+#[repr(C)]
+struct SensorC {
+    name: *const c_char,
+    kind: *const c_char,
+    rate_hz: f64,
+    base_from_sensor_xyz: [f64; 3],
+    base_from_sensor_xyzw: [f64; 4],
+    intrinsics: *const ParamC,
+    n_intrinsics: usize,
+    noise: *const ParamC,
+    n_noise: usize,
+}
+
+/// The header's `vb_rig`.
+#[repr(C)]
+struct RigC {
+    sensors: *const SensorC,
+    n_sensors: usize,
+}
+
+/// The header's `vb_create_info`.
+#[repr(C)]
+struct CreateInfoC {
+    struct_size: u32,
+    abi_revision: u32,
+    config_toml: *const c_char,
+    rig_toml: *const c_char,
+    rig: *const RigC,
+}
+
 #[repr(C)]
 struct OutputC {
     trajectory: *const Pose,
@@ -100,13 +142,40 @@ struct Table {
     on_laser_scan: Callback<LaserScanC>,
     on_rgbd: Callback<RgbdFrameC>,
     finish: Option<unsafe extern "C" fn(*mut c_void, *mut OutputC) -> i32>,
+    // Revision 2.
+    requirements_for: Option<unsafe extern "C" fn(*const c_char) -> *const c_char>,
+    create_with: Option<unsafe extern "C" fn(*const CreateInfoC) -> *mut c_void>,
 }
 
-/// A loaded C plugin's table: valid as long as its library stays loaded, which the loader
-/// keeps for the life of the process.
+/// `sizeof(vb_plugin)` of revision 1: the smallest table the host accepts.
+const TABLE_SIZE_REVISION_1: usize = std::mem::offset_of!(Table, requirements_for);
+
+/// A loaded C plugin's table: the host's own copy of the part the plugin's `struct_size`
+/// covers (fields past it are NULL), whose functions live in the library, which the loader
+/// keeps loaded for the life of the process.
 #[derive(Clone, Copy)]
 pub struct CPlugin {
     table: &'static Table,
+}
+
+/// The host's copy of a plugin's table of `size` bytes at `table`: the fields it has, and
+/// NULL for those appended after the plugin was built.
+///
+/// # Safety
+/// `table` points to at least `min(size, size_of::<Table>())` readable bytes laid out as the
+/// header's `vb_plugin`.
+unsafe fn copy_table(table: *const Table, size: usize) -> &'static Table {
+    // SAFETY: every field of `Table` is an integer, a pointer or an `Option` of a function
+    // pointer, for each of which all-zero bytes are valid (0, NULL, None).
+    let mut copy: Table = unsafe { std::mem::zeroed() };
+    let n = size.min(size_of::<Table>());
+    // SAFETY: the caller guarantees `n` readable bytes at `table`; `copy` has room for
+    // `size_of::<Table>() >= n` bytes, and the two do not overlap.
+    unsafe {
+        std::ptr::copy_nonoverlapping(table.cast::<u8>(), (&raw mut copy).cast::<u8>(), n);
+    }
+    // One per library loaded, for the life of the process, as the library itself.
+    Box::leak(Box::new(copy))
 }
 
 /// `text` of a NUL-terminated string the plugin owns; `what` names it in errors.
@@ -159,14 +228,15 @@ impl CPlugin {
                  {ABI_VERSION}; rebuild it against this vinebench's vinebench_plugin.h"
             ));
         }
-        if (size as usize) < size_of::<Table>() {
+        if (size as usize) < TABLE_SIZE_REVISION_1 {
             return Err(format!(
-                "its vb_plugin is {size} bytes, smaller than version {ABI_VERSION}'s {}",
-                size_of::<Table>()
+                "its vb_plugin is {size} bytes (struct_size), smaller than revision 1's \
+                 {TABLE_SIZE_REVISION_1}: set struct_size = sizeof(vb_plugin)"
             ));
         }
-        // SAFETY: checked non-null, of this version and at least this size; static.
-        let table: &'static Table = unsafe { &*table };
+        // SAFETY: checked non-null and of this version; the plugin's `struct_size` says how
+        // many bytes its table has, at least revision 1's.
+        let table = unsafe { copy_table(table, size as usize) };
         // SAFETY: the strings are the table's, NUL-terminated and static.
         let (name, version, requirements) = unsafe {
             (
@@ -178,7 +248,10 @@ impl CPlugin {
         let requirements: Requirements = toml::from_str(&requirements)
             .map_err(|e| format!("unreadable requirements_toml: {}", e.message()))?;
         for (present, what) in [
-            (table.create.is_some(), "create"),
+            (
+                table.create.is_some() || table.create_with.is_some(),
+                "create (or create_with)",
+            ),
             (table.destroy.is_some(), "destroy"),
             (table.last_error.is_some(), "last_error"),
             (table.finish.is_some(), "finish"),
@@ -195,14 +268,56 @@ impl CPlugin {
         }))
     }
 
-    /// Creates the system with its parameters and the rig.
+    /// The requirements for this parameter table: the plugin's `requirements_for` where its
+    /// table has one, else `requirements` (what it said when loaded).
+    pub fn requirements_for(
+        &self,
+        config_toml: &str,
+        requirements: &Requirements,
+    ) -> Result<Requirements, PluginError> {
+        let Some(ask) = self.table.requirements_for else {
+            return Ok(requirements.clone());
+        };
+        let config = CString::new(config_toml)
+            .map_err(|_| PluginError("the parameter table contains a NUL byte".into()))?;
+        // SAFETY: the string is NUL-terminated and lives through the call.
+        let answer = unsafe { ask(config.as_ptr()) };
+        if answer.is_null() {
+            return Err(PluginError(format!(
+                "requirements failed: {}",
+                self.error(std::ptr::null_mut(), "requirements_for")
+            )));
+        }
+        // SAFETY: non-null, NUL-terminated and valid until the plugin's next call.
+        let text = unsafe { text(answer, "requirements_for") }.map_err(PluginError)?;
+        toml::from_str(&text)
+            .map_err(|e| PluginError(format!("unreadable requirements: {}", e.message())))
+    }
+
+    /// Creates the system with its parameters and the rig (`create_with` where the table
+    /// has it, with the rig typed; else `create`).
     pub fn create(&self, config_toml: &str, rig: &Rig) -> Result<CInstance, PluginError> {
         let nul = |what: &str| PluginError(format!("the {what} contains a NUL byte"));
         let config = CString::new(config_toml).map_err(|_| nul("parameter table"))?;
-        let rig = CString::new(rig.to_toml()).map_err(|_| nul("rig"))?;
-        let create = self.table.create.expect("checked at load");
-        // SAFETY: both strings are NUL-terminated and live through the call.
-        let this = unsafe { create(config.as_ptr(), rig.as_ptr()) };
+        let rig_toml = CString::new(rig.to_toml()).map_err(|_| nul("rig"))?;
+        let this = match (self.table.create_with, self.table.create) {
+            (Some(create_with), _) => {
+                let typed = TypedRig::new(rig).map_err(|what| nul(&what))?;
+                let info = CreateInfoC {
+                    struct_size: size_of::<CreateInfoC>() as u32,
+                    abi_revision: ABI_REVISION,
+                    config_toml: config.as_ptr(),
+                    rig_toml: rig_toml.as_ptr(),
+                    rig: &typed.rig,
+                };
+                // SAFETY: `info` and everything it points to (`typed`, the strings) live
+                // through the call.
+                unsafe { create_with(&info) }
+            }
+            // SAFETY: both strings are NUL-terminated and live through the call.
+            (None, Some(create)) => unsafe { create(config.as_ptr(), rig_toml.as_ptr()) },
+            (None, None) => unreachable!("checked at load: create or create_with"),
+        };
         if this.is_null() {
             return Err(PluginError(self.error(std::ptr::null_mut(), "create")));
         }
@@ -221,6 +336,66 @@ impl CPlugin {
             Ok(m) if !m.trim().is_empty() => m.lines().next().unwrap_or("").trim().to_owned(),
             _ => format!("{call} failed without an error message"),
         }
+    }
+}
+
+/// The header's typed `vb_rig` of a [`Rig`], with the storage its pointers point into.
+struct TypedRig {
+    rig: RigC,
+    _sensors: Vec<SensorC>,
+    _params: Vec<Vec<ParamC>>,
+    _strings: Vec<CString>,
+}
+
+impl TypedRig {
+    /// `Err` names what holds a NUL byte.
+    fn new(rig: &Rig) -> Result<Self, String> {
+        let mut strings = Vec::new();
+        let mut keep = |s: &str, what: &str| -> Result<*const c_char, String> {
+            let c = CString::new(s).map_err(|_| format!("rig's {what} {s:?}"))?;
+            let p = c.as_ptr();
+            strings.push(c);
+            Ok(p)
+        };
+        let mut params = Vec::new();
+        let mut sensors = Vec::with_capacity(rig.sensors.len());
+        for s in &rig.sensors {
+            let mut table = |m: &std::collections::BTreeMap<String, f64>| {
+                m.iter()
+                    .map(|(k, v)| {
+                        Ok(ParamC {
+                            key: keep(k, "key")?,
+                            value: *v,
+                        })
+                    })
+                    .collect::<Result<Vec<_>, String>>()
+            };
+            let intrinsics = table(&s.intrinsics)?;
+            let noise = table(&s.noise)?;
+            sensors.push(SensorC {
+                name: keep(&s.name, "sensor name")?,
+                kind: keep(s.kind.name(), "sensor kind")?,
+                rate_hz: s.rate_hz,
+                base_from_sensor_xyz: s.base_from_sensor_xyz,
+                base_from_sensor_xyzw: s.base_from_sensor_xyzw,
+                intrinsics: intrinsics.as_ptr(),
+                n_intrinsics: intrinsics.len(),
+                noise: noise.as_ptr(),
+                n_noise: noise.len(),
+            });
+            // The vectors' heap buffers do not move when the vectors do.
+            params.push(intrinsics);
+            params.push(noise);
+        }
+        Ok(Self {
+            rig: RigC {
+                sensors: sensors.as_ptr(),
+                n_sensors: sensors.len(),
+            },
+            _sensors: sensors,
+            _params: params,
+            _strings: strings,
+        })
     }
 }
 
@@ -337,62 +512,513 @@ impl CInstance {
         if unsafe { finish(self.this, &mut o) } != 0 {
             return Err(self.error("finish"));
         }
-        let bad = |what: &str| PluginError(format!("finish: {what}"));
-        // SAFETY: the header makes the plugin keep these arrays, of these lengths, alive
-        // until `destroy`; each is checked non-null before it is read.
-        let slice = |p: *const Pose, n: usize| -> &[Pose] {
-            if n == 0 {
-                &[]
-            } else {
-                unsafe { std::slice::from_raw_parts(p, n) }
-            }
-        };
-        if o.n_trajectory > 0 && o.trajectory.is_null() {
-            return Err(bad("trajectory is NULL with n_trajectory > 0"));
+        // SAFETY: the header makes the plugin keep what `o` points to alive, of the lengths
+        // it gives, until its next call.
+        unsafe { output_from_c(&o) }
+    }
+}
+
+/// What a C plugin's `finish` returned, copied out of its memory and checked: NULL arrays
+/// with non-zero lengths, grids without cells, events that are not UTF-8 TOML of known
+/// kinds are errors naming the field.
+///
+/// # Safety
+/// Every non-NULL pointer in `o` points to as many elements as its length says (the header's
+/// rule for a plugin's output), valid for the call; strings are NUL-terminated.
+unsafe fn output_from_c(o: &OutputC) -> Result<SlamOutput, PluginError> {
+    let bad = |what: &str| PluginError(format!("finish: {what}"));
+    // SAFETY: the header makes the plugin keep these arrays, of these lengths, alive
+    // until `destroy`; each is checked non-null before it is read.
+    let slice = |p: *const Pose, n: usize| -> &[Pose] {
+        if n == 0 {
+            &[]
+        } else {
+            unsafe { std::slice::from_raw_parts(p, n) }
         }
-        let trajectory = slice(o.trajectory, o.n_trajectory).to_vec();
-        let map = if o.map_xyz.is_null() {
-            None
-        } else {
-            // SAFETY: as above, 3 floats a point.
-            let xyz = unsafe { std::slice::from_raw_parts(o.map_xyz, 3 * o.n_map_points) };
-            Some(xyz.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect())
-        };
-        let grid = if o.grid.is_null() {
-            None
-        } else {
-            // SAFETY: non-null, a vb_grid the plugin keeps alive.
-            let g = unsafe { &*o.grid };
-            let n = g.width as usize * g.height as usize;
-            if n > 0 && g.cells.is_null() {
-                return Err(bad("grid cells are NULL"));
-            }
-            // SAFETY: `n` cells, as the header requires.
-            let cells = if n == 0 {
-                Vec::new()
-            } else {
-                unsafe { std::slice::from_raw_parts(g.cells, n) }.to_vec()
-            };
-            Some(OccupancyGrid {
-                resolution_m: g.resolution_m,
-                origin: g.origin,
-                width: g.width,
-                height: g.height,
-                cells,
-            })
-        };
-        let events = if o.events_toml.is_null() {
+    };
+    if o.n_trajectory > 0 && o.trajectory.is_null() {
+        return Err(bad("trajectory is NULL with n_trajectory > 0"));
+    }
+    let trajectory = slice(o.trajectory, o.n_trajectory).to_vec();
+    let map = if o.map_xyz.is_null() {
+        None
+    } else if o.n_map_points.checked_mul(3).is_none() {
+        return Err(bad("n_map_points is impossibly large"));
+    } else {
+        // SAFETY: as above, 3 floats a point.
+        let xyz = unsafe { std::slice::from_raw_parts(o.map_xyz, 3 * o.n_map_points) };
+        Some(xyz.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect())
+    };
+    let grid = if o.grid.is_null() {
+        None
+    } else {
+        // SAFETY: non-null, a vb_grid the plugin keeps alive.
+        let g = unsafe { &*o.grid };
+        let n = g.width as usize * g.height as usize;
+        let valid = g.resolution_m.is_finite()
+            && g.resolution_m > 0.0
+            && g.origin.iter().all(|v| v.is_finite());
+        if !valid {
+            return Err(bad(
+                "the grid's resolution must be positive and its origin finite",
+            ));
+        }
+        if n > 0 && g.cells.is_null() {
+            return Err(bad("grid cells are NULL"));
+        }
+        // SAFETY: `n` cells, as the header requires.
+        let cells = if n == 0 {
             Vec::new()
         } else {
-            // SAFETY: NUL-terminated, kept alive by the plugin.
-            let toml_text = unsafe { text(o.events_toml, "events_toml") }.map_err(|e| bad(&e))?;
-            crate::ffi::events_from_toml(&toml_text).map_err(|e| bad(&e))?
+            unsafe { std::slice::from_raw_parts(g.cells, n) }.to_vec()
         };
-        Ok(SlamOutput {
-            trajectory,
-            map,
-            grid,
-            events,
+        Some(OccupancyGrid {
+            resolution_m: g.resolution_m,
+            origin: g.origin,
+            width: g.width,
+            height: g.height,
+            cells,
         })
+    };
+    let events = if o.events_toml.is_null() {
+        Vec::new()
+    } else {
+        // SAFETY: NUL-terminated, kept alive by the plugin.
+        let toml_text = unsafe { text(o.events_toml, "events_toml") }.map_err(|e| bad(&e))?;
+        crate::ffi::events_from_toml(&toml_text).map_err(|e| bad(&e))?
+    };
+    Ok(SlamOutput {
+        trajectory,
+        map,
+        grid,
+        events,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+    use std::process::Command;
+
+    use super::*;
+
+    /// `_Static_assert`s of every mirror's size and field offsets against the header.
+    macro_rules! layout {
+        ($out:ident, $c:literal, $rust:ty, [$($field:ident),* $(,)?]) => {{
+            $out.push_str(&format!(
+                "VB_ASSERT(sizeof({}) == {}, \"sizeof({})\");\n",
+                $c,
+                size_of::<$rust>(),
+                $c
+            ));
+            $(
+                $out.push_str(&format!(
+                    "VB_ASSERT(offsetof({}, {}) == {}, \"{}.{}\");\n",
+                    $c,
+                    stringify!($field),
+                    offset_of!($rust, $field),
+                    $c,
+                    stringify!($field)
+                ));
+            )*
+        }};
+    }
+
+    /// The assertions for every struct of the header that the host mirrors.
+    fn assertions() -> String {
+        let mut out = String::new();
+        layout!(out, "vb_pose", Pose, [stamp_ns, translation, rotation_xyzw]);
+        layout!(
+            out,
+            "vb_imu",
+            Imu,
+            [stamp_ns, accel_mps2, gyro_rps, orientation_xyzw]
+        );
+        layout!(
+            out,
+            "vb_wheel_odometry",
+            WheelOdometry,
+            [stamp_ns, linear_mps, angular_rps, odom_from_base]
+        );
+        layout!(
+            out,
+            "vb_lidar_point",
+            LidarPoint,
+            [x, y, z, intensity, time_s, ring]
+        );
+        layout!(
+            out,
+            "vb_point_cloud",
+            PointCloudC,
+            [stamp_ns, sensor, sensor_len, points, n_points]
+        );
+        layout!(
+            out,
+            "vb_laser_scan",
+            LaserScanC,
+            [
+                stamp_ns,
+                sensor,
+                sensor_len,
+                angle_min_rad,
+                angle_increment_rad,
+                time_increment_s,
+                range_min_m,
+                range_max_m,
+                ranges_m,
+                n_ranges,
+                intensities,
+                n_intensities
+            ]
+        );
+        layout!(
+            out,
+            "vb_rgbd_frame",
+            RgbdFrameC,
+            [
+                stamp_ns, sensor, sensor_len, width, height, rgb, rgb_len, depth_m, depth_len,
+                intrinsics
+            ]
+        );
+        layout!(
+            out,
+            "vb_grid",
+            GridC,
+            [resolution_m, origin, width, height, cells]
+        );
+        layout!(
+            out,
+            "vb_output",
+            OutputC,
+            [
+                trajectory,
+                n_trajectory,
+                map_xyz,
+                n_map_points,
+                grid,
+                events_toml
+            ]
+        );
+        layout!(out, "vb_param", ParamC, [key, value]);
+        layout!(
+            out,
+            "vb_sensor",
+            SensorC,
+            [
+                name,
+                kind,
+                rate_hz,
+                base_from_sensor_xyz,
+                base_from_sensor_xyzw,
+                intrinsics,
+                n_intrinsics,
+                noise,
+                n_noise
+            ]
+        );
+        layout!(out, "vb_rig", RigC, [sensors, n_sensors]);
+        layout!(
+            out,
+            "vb_create_info",
+            CreateInfoC,
+            [struct_size, abi_revision, config_toml, rig_toml, rig]
+        );
+        layout!(
+            out,
+            "vb_plugin",
+            Table,
+            [
+                abi_version,
+                struct_size,
+                name,
+                version,
+                requirements_toml,
+                create,
+                destroy,
+                last_error,
+                on_imu,
+                on_wheel_odometry,
+                on_point_cloud,
+                on_laser_scan,
+                on_rgbd,
+                finish,
+                requirements_for,
+                create_with
+            ]
+        );
+        out.push_str(&format!(
+            "VB_ASSERT(VB_ABI_VERSION == {ABI_VERSION}, \"VB_ABI_VERSION\");\n\
+             VB_ASSERT(VB_ABI_REVISION == {ABI_REVISION}, \"VB_ABI_REVISION\");\n\
+             VB_ASSERT(VB_PLUGIN_SIZE_REVISION_1 == {TABLE_SIZE_REVISION_1}, \"revision 1's size\");\n"
+        ));
+        out
+    }
+
+    /// Compiles `source` with `compiler` and `flags` against the header; the compiler's
+    /// complaint if it fails.
+    fn compile(compiler: &str, flags: &[&str], name: &str, source: &str) -> Result<(), String> {
+        let dir = tempfile_dir();
+        let file = dir.join(name);
+        std::fs::write(&file, source).expect("write the check's source");
+        let include = concat!(env!("CARGO_MANIFEST_DIR"), "/include");
+        let output = Command::new(compiler)
+            .args(flags)
+            .args([
+                "-Wall",
+                "-Wextra",
+                "-Wpedantic",
+                "-Werror",
+                "-fsyntax-only",
+                "-I",
+            ])
+            .arg(include)
+            .arg(&file)
+            .output()
+            .map_err(|e| format!("cannot run {compiler}: {e} (install gcc and g++)"))?;
+        if output.status.success() {
+            Ok(())
+        } else {
+            Err(String::from_utf8_lossy(&output.stderr).into_owned())
+        }
+    }
+
+    fn tempfile_dir() -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!(
+            "vinebench-layout-{}-{:?}",
+            std::process::id(),
+            std::thread::current().id()
+        ));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        dir
+    }
+
+    /// Every C mirror's size and field offsets equal the header's, checked by the C and C++
+    /// compilers themselves (`_Static_assert` / `static_assert` of `offsetof` and `sizeof`),
+    /// and the header compiles as C11 and C++17 with every warning an error.
+    #[test]
+    fn the_mirrors_have_the_header_s_layouts_in_c11_and_cpp17() {
+        let checks = assertions();
+        assert!(checks.matches("VB_ASSERT").count() > 80, "{checks}");
+        let c = format!(
+            "#include <stddef.h>\n#include \"vinebench_plugin.h\"\n#define VB_ASSERT _Static_assert\n{checks}"
+        );
+        compile("cc", &["-std=c11", "-x", "c"], "layout.c", &c).expect("C11");
+        let cpp = format!(
+            "#include <cstddef>\n#include \"vinebench_plugin.h\"\n#define VB_ASSERT static_assert\n{checks}"
+        );
+        compile("c++", &["-std=c++17", "-x", "c++"], "layout.cpp", &cpp).expect("C++17");
+        // The check can fail: one wrong offset is refused by the compiler.
+        let wrong = c.replacen(
+            &format!(
+                "offsetof(vb_rgbd_frame, rgb) == {}",
+                offset_of!(RgbdFrameC, rgb)
+            ),
+            &format!(
+                "offsetof(vb_rgbd_frame, rgb) == {}",
+                offset_of!(RgbdFrameC, rgb) + 8
+            ),
+            1,
+        );
+        assert_ne!(wrong, c);
+        let refused = compile("cc", &["-std=c11", "-x", "c"], "wrong.c", &wrong)
+            .expect_err("a wrong offset does not compile");
+        assert!(refused.contains("vb_rgbd_frame.rgb"), "{refused}");
+    }
+
+    /// A table of revision 1's size loads with its revision-2 fields read as absent, even
+    /// where the bytes after it hold something.
+    #[test]
+    fn a_revision_1_table_reads_as_absent_what_it_lacks() {
+        unsafe extern "C" fn never(_: *const c_char) -> *const c_char {
+            panic!("a field past struct_size was read")
+        }
+        // SAFETY: all-zero bytes are a valid Table (see copy_table).
+        let mut full: Table = unsafe { std::mem::zeroed() };
+        full.abi_version = ABI_VERSION;
+        full.struct_size = TABLE_SIZE_REVISION_1 as u32;
+        full.requirements_for = Some(never);
+        // SAFETY: `full` has size_of::<Table>() readable bytes.
+        let copy = unsafe { copy_table(&full, TABLE_SIZE_REVISION_1) };
+        assert!(copy.requirements_for.is_none());
+        assert!(copy.create_with.is_none());
+        let plugin = CPlugin { table: copy };
+        let r = Requirements::online(&[crate::SensorKind::Lidar]);
+        assert_eq!(plugin.requirements_for("x = 1", &r), Ok(r.clone()));
+        // The whole table keeps it.
+        // SAFETY: as above.
+        let whole = unsafe { copy_table(&full, size_of::<Table>()) };
+        assert!(whole.requirements_for.is_some());
+    }
+}
+
+/// Drives the C door's host side with arbitrary values, as a C plugin could hand them back
+/// (`fuzz/`; and the stable replay of its corpus). Not part of the API.
+#[doc(hidden)]
+pub mod fuzzing {
+    use std::cell::RefCell;
+    use std::ffi::{c_char, c_void};
+
+    use super::*;
+
+    /// Reads values off the front of the fuzzer's bytes; zeros once they run out.
+    struct Bytes<'a>(&'a [u8]);
+
+    impl Bytes<'_> {
+        fn take<const N: usize>(&mut self) -> [u8; N] {
+            let mut out = [0u8; N];
+            let n = N.min(self.0.len());
+            out[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            out
+        }
+        fn u8(&mut self) -> u8 {
+            self.take::<1>()[0]
+        }
+        fn f64(&mut self) -> f64 {
+            f64::from_le_bytes(self.take())
+        }
+        fn f32(&mut self) -> f32 {
+            f32::from_le_bytes(self.take())
+        }
+        fn i64(&mut self) -> i64 {
+            i64::from_le_bytes(self.take())
+        }
+        /// A NUL-terminated string of up to `max` arbitrary bytes (UTF-8 or not).
+        fn c_string(&mut self, max: usize) -> Vec<u8> {
+            let n = (self.u8() as usize).min(max).min(self.0.len());
+            let mut s: Vec<u8> = self.0[..n].iter().map(|&b| b.max(1)).collect();
+            self.0 = &self.0[n..];
+            s.push(0);
+            s
+        }
+    }
+
+    /// `finish`'s output built from `data` (arrays, NULLs with lengths, a grid, events TOML
+    /// text) and read as the host reads a C plugin's; it must answer, never panic.
+    pub fn c_output(data: &[u8]) {
+        let mut b = Bytes(data);
+        let flags = b.u8();
+        let n_poses = (b.u8() % 16) as usize;
+        let poses: Vec<Pose> = (0..n_poses)
+            .map(|_| Pose {
+                stamp_ns: b.i64(),
+                translation: [b.f64(), b.f64(), b.f64()],
+                rotation_xyzw: [b.f64(), b.f64(), b.f64(), b.f64()],
+            })
+            .collect();
+        let n_points = (b.u8() % 16) as usize;
+        let map: Vec<f32> = (0..3 * n_points).map(|_| b.f32()).collect();
+        let (w, h) = ((b.u8() % 8) as u32, (b.u8() % 8) as u32);
+        let cells: Vec<i8> = (0..w * h).map(|_| b.u8() as i8).collect();
+        let grid = GridC {
+            resolution_m: b.f64(),
+            origin: [b.f64(), b.f64(), b.f64()],
+            width: w,
+            height: h,
+            cells: if flags & 4 != 0 {
+                std::ptr::null()
+            } else {
+                cells.as_ptr()
+            },
+        };
+        let events = b.c_string(4096);
+        let o = OutputC {
+            trajectory: if flags & 1 != 0 {
+                std::ptr::null()
+            } else {
+                poses.as_ptr()
+            },
+            n_trajectory: n_poses,
+            map_xyz: if flags & 2 != 0 {
+                std::ptr::null()
+            } else {
+                map.as_ptr()
+            },
+            n_map_points: n_points,
+            grid: if flags & 8 != 0 {
+                std::ptr::null()
+            } else {
+                &grid
+            },
+            events_toml: if flags & 16 != 0 {
+                std::ptr::null()
+            } else {
+                events.as_ptr().cast()
+            },
+        };
+        // SAFETY: every non-NULL pointer points to as many elements as its length says.
+        let _ = unsafe { output_from_c(&o) };
+    }
+
+    thread_local! {
+        static ANSWER: RefCell<(i32, Pose, Vec<u8>, Vec<u8>)> = RefCell::new((
+            0,
+            Pose { stamp_ns: 0, translation: [0.0; 3], rotation_xyzw: [0.0, 0.0, 0.0, 1.0] },
+            vec![0],
+            vec![0],
+        ));
+    }
+
+    unsafe extern "C" fn answer(_: *mut c_void, _: *const Imu, estimate: *mut Pose) -> i32 {
+        ANSWER.with(|a| {
+            let a = a.borrow();
+            // SAFETY: the host passes a valid estimate to fill.
+            unsafe { *estimate = a.1 };
+            a.0
+        })
+    }
+
+    unsafe extern "C" fn last_error(_: *mut c_void) -> *const c_char {
+        ANSWER.with(|a| a.borrow().2.as_ptr().cast())
+    }
+
+    unsafe extern "C" fn requirements_for(_: *const c_char) -> *const c_char {
+        ANSWER.with(|a| {
+            let a = a.borrow();
+            if a.3.len() == 1 {
+                std::ptr::null()
+            } else {
+                a.3.as_ptr().cast()
+            }
+        })
+    }
+
+    /// A message answered with an arbitrary return code, pose and error text, and
+    /// requirements answered with arbitrary text (or NULL), as a C plugin could; the host
+    /// must turn each into a pose, no pose or an error, never panic.
+    pub fn c_answers(data: &[u8]) {
+        let mut b = Bytes(data);
+        let code = i32::from_le_bytes(b.take());
+        let pose = Pose {
+            stamp_ns: b.i64(),
+            translation: [b.f64(), b.f64(), b.f64()],
+            rotation_xyzw: [b.f64(), b.f64(), b.f64(), b.f64()],
+        };
+        let error = b.c_string(512);
+        let requirements = b.c_string(2048);
+        ANSWER.with(|a| *a.borrow_mut() = (code, pose, error, requirements));
+        // SAFETY: all-zero bytes are a valid Table (see copy_table).
+        let mut table: Table = unsafe { std::mem::zeroed() };
+        table.last_error = Some(last_error);
+        table.on_imu = Some(answer);
+        table.requirements_for = Some(requirements_for);
+        let table: &'static Table = Box::leak(Box::new(table));
+        let plugin = CPlugin { table };
+        let _ = plugin.requirements_for("x = 1", &Requirements::default());
+        let mut instance = CInstance {
+            table,
+            // Never dereferenced by these callbacks; `destroy` is absent.
+            this: std::ptr::NonNull::<u8>::dangling().as_ptr().cast(),
+        };
+        let imu = Imu {
+            stamp_ns: 1,
+            accel_mps2: [0.0, 0.0, 9.81],
+            gyro_rps: [0.0; 3],
+            orientation_xyzw: [0.0; 4],
+        };
+        if let Ok(Some(p)) = instance.on_imu(&imu) {
+            // What the worker then checks before recording it.
+            let _ = p.isometry();
+        }
     }
 }

@@ -46,7 +46,7 @@ mod rig;
 mod stages;
 mod system;
 
-pub use loader::{LoadError, LoadedPlugin, PluginInstance, load};
+pub use loader::{Door, LoadError, LoadedPlugin, PluginInstance, load};
 pub use messages::{
     Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry, gray_from_rgb,
 };
@@ -57,8 +57,20 @@ pub use system::{
     Event, EventKind, Mode, OccupancyGrid, PluginError, Requirements, SlamOutput, SlamSystem,
 };
 
-/// This crate's version: a plugin and the host must agree on it.
+/// This crate's version: a Rust plugin loads when its plugin-api has the host's
+/// `major.minor` (docs/plugin-contract.md, "Versions").
 pub const API_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// The contract's revision, the same number in all three doors (the C header's
+/// `VB_ABI_REVISION`, the Python bridge's `API_REVISION`): how many rounds of appended
+/// calls and fields it has had (docs/plugin-contract.md, "Versions").
+pub const ABI_REVISION: u32 = c_abi::ABI_REVISION;
+
+/// The C door's host side driven with arbitrary values (`fuzz/`); not part of the API.
+#[doc(hidden)]
+pub mod __fuzzing {
+    pub use crate::c_abi::fuzzing::{c_answers, c_output};
+}
 
 /// Used by [`export_plugin!`]; not part of the API.
 #[doc(hidden)]

@@ -31,8 +31,31 @@ pub enum LoadError {
         "{path}: the plugin-api types it was built with differ in layout from this vinebench's; rebuild the plugin against plugin-api {host}"
     )]
     Layout { path: PathBuf, host: String },
+    /// A shared library that exports neither door's symbol: not a plugin at all.
+    #[error(
+        "{path}: not a vinebench plugin (it exports neither vinebench_plugin_v1 nor a Rust plugin's root module; did it call export_plugin!?)"
+    )]
+    NotAPlugin { path: PathBuf },
     #[error("{path}: {message}")]
     Other { path: PathBuf, message: String },
+}
+
+/// Through which door a library speaks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Door {
+    /// A Rust plugin (`export_plugin!`, abi_stable's root module).
+    Rust,
+    /// A C plugin (`vinebench_plugin_v1`, `include/vinebench_plugin.h`).
+    C,
+}
+
+impl Door {
+    pub fn name(self) -> &'static str {
+        match self {
+            Door::Rust => "Rust",
+            Door::C => "C",
+        }
+    }
 }
 
 /// A loaded plugin library, not yet created.
@@ -87,11 +110,8 @@ fn describe(path: &Path, e: LibraryError) -> LoadError {
             path: path.to_owned(),
             host,
         },
-        LibraryError::GetSymbolError { .. } => LoadError::Other {
+        LibraryError::GetSymbolError { .. } => LoadError::NotAPlugin {
             path: path.to_owned(),
-            message:
-                "not a vinebench plugin (no exported root module; did it call export_plugin!?)"
-                    .into(),
         },
         other => LoadError::Other {
             path: path.to_owned(),
@@ -162,12 +182,22 @@ pub fn load(path: &Path) -> Result<LoadedPlugin, LoadError> {
 }
 
 impl LoadedPlugin {
+    /// Through which door the library speaks.
+    pub fn door(&self) -> Door {
+        match self.module {
+            Module::Rust(_) => Door::Rust,
+            Module::C(_) => Door::C,
+        }
+    }
+
     /// The requirements for this parameter table: the plugin's answer when it takes the
-    /// parameters into account (a Rust plugin's [`crate::SlamSystem::requirements_for`]),
-    /// else the requirements it gave when loaded (every C plugin, older Rust plugins).
+    /// parameters into account (a Rust plugin's [`crate::SlamSystem::requirements_for`], a
+    /// C plugin's `requirements_for`), else the requirements it gave when loaded (plugins
+    /// built before either existed).
     pub fn requirements_for(&self, config_toml: &str) -> Result<Requirements, PluginError> {
-        let Module::Rust(module) = &self.module else {
-            return Ok(self.requirements.clone());
+        let module = match &self.module {
+            Module::C(c) => return c.requirements_for(config_toml, &self.requirements),
+            Module::Rust(module) => module,
         };
         let Some(ask) = module.requirements_for() else {
             return Ok(self.requirements.clone());

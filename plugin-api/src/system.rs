@@ -42,9 +42,17 @@ impl Requirements {
     }
 }
 
-/// What kind of thing an [`Event`] is.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+/// What kind of thing an [`Event`] is: the one registry of event kinds, for all three doors
+/// (the C header's `events_toml` and the Python bridge's `finish()` take the same names,
+/// [`EventKind::name`]; `docs/plugin-contract.md` lists them).
+///
+/// Open to additions: a later plugin-api may append kinds (the enum is `non_exhaustive`,
+/// and events cross every door as their names), so a plugin built before a kind existed
+/// keeps loading and never sends it. A name the host does not know fails the run with a
+/// line naming it and the known ones, so a misspelt kind is not silently dropped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum EventKind {
     LoopClosureAccepted,
     LoopClosureRejected,
@@ -53,6 +61,52 @@ pub enum EventKind {
 }
 
 impl EventKind {
+    /// Every kind this plugin-api knows, in the order they were added.
+    pub const ALL: [EventKind; 4] = [
+        Self::LoopClosureAccepted,
+        Self::LoopClosureRejected,
+        Self::TrackingLost,
+        Self::TrackingRecovered,
+    ];
+
+    /// The kind's name as it crosses the doors (`loop_closure_accepted`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LoopClosureAccepted => "loop_closure_accepted",
+            Self::LoopClosureRejected => "loop_closure_rejected",
+            Self::TrackingLost => "tracking_lost",
+            Self::TrackingRecovered => "tracking_recovered",
+        }
+    }
+
+    /// What the kind means, one line (the contract table in `docs/plugin-contract.md`).
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::LoopClosureAccepted => {
+                "a loop closure (or map merge) the system accepted into its map; judged against ground truth"
+            }
+            Self::LoopClosureRejected => {
+                "a loop closure candidate the system checked and refused; counted, not judged"
+            }
+            Self::TrackingLost => "the system lost track (no pose until it recovers)",
+            Self::TrackingRecovered => "the system tracks again after being lost",
+        }
+    }
+
+    /// The kind called `name`; an error naming the known kinds otherwise.
+    pub fn from_name(name: &str) -> Result<Self, PluginError> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| {
+                let known: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
+                PluginError(format!(
+                    "unknown event kind {name:?} (known: {})",
+                    known.join(", ")
+                ))
+            })
+    }
+
     /// Whether this is a loop closure, accepted or rejected.
     pub fn is_loop_closure(&self) -> bool {
         matches!(self, Self::LoopClosureAccepted | Self::LoopClosureRejected)
@@ -222,4 +276,57 @@ pub trait SlamSystem: Sized + Send + 'static {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The registry is the one list of kinds: serde's names are `name()`, `from_name` is its
+    /// inverse and refuses others naming the known ones, and the header, the contract page
+    /// and the Python base class name every kind and the same revision.
+    #[test]
+    fn every_door_names_the_registry_s_kinds() {
+        for kind in EventKind::ALL {
+            let serde: String = toml::Value::try_from(kind)
+                .expect("serialises")
+                .as_str()
+                .expect("a string")
+                .to_owned();
+            assert_eq!(serde, kind.name());
+            assert_eq!(EventKind::from_name(kind.name()), Ok(kind));
+            assert!(!kind.description().is_empty());
+        }
+        let unknown = EventKind::from_name("loop_closure").expect_err("unknown");
+        assert!(
+            unknown.0.contains("\"loop_closure\"") && unknown.0.contains("tracking_lost"),
+            "{unknown}"
+        );
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+        let read = |path: &str| {
+            std::fs::read_to_string(format!("{root}/{path}"))
+                .unwrap_or_else(|e| panic!("{path}: {e}"))
+        };
+        let header = read("plugin-api/include/vinebench_plugin.h");
+        let contract = read("docs/plugin-contract.md");
+        for kind in EventKind::ALL {
+            assert!(
+                header.contains(&format!("\"{}\"", kind.name())),
+                "the header lacks {}",
+                kind.name()
+            );
+            assert!(
+                contract.contains(&format!("| `{}` | {} |", kind.name(), kind.description())),
+                "docs/plugin-contract.md's table lacks {} as the registry describes it",
+                kind.name()
+            );
+        }
+        let python = read("plugins/python-bridge/python/vinebench_plugin.py");
+        assert!(
+            python.contains(&format!("API_REVISION = {}", crate::ABI_REVISION)),
+            "vinebench_plugin.py's API_REVISION is not {}",
+            crate::ABI_REVISION
+        );
+        assert!(header.contains(&format!("#define VB_ABI_REVISION {}u", crate::ABI_REVISION)));
+    }
 }

@@ -5,8 +5,17 @@
  * for byte. It reports one event, a map of its first three positions, and can be told to
  * fail (parameters `fault = "create" | "error" | "segfault"`, after `after` messages).
  *
+ * It is also the C door's conformance fixture (`vinebench check-plugin`): with
+ * `sensors = "all"` its `requirements_for` (revision 2) asks for every sensor, and each
+ * callback checks the message's fields against each other and against the typed rig it got
+ * through `create_with` (point rings below the lidar's `rings`, colour and depth sizes from
+ * width and height, scan intensities beside ranges), answering a mismatch with an error: a
+ * layout that differs from the host's fails the route check. Non-finite wheel speeds are
+ * answered with an error, not integrated.
+ *
  * Built by host/build.rs for the end-to-end tests: cc -shared -fPIC -ffp-contract=off (and
- * once more with -DC_ODOMETRY_ABI_VERSION=99, a library the host must refuse).
+ * once more with -DC_ODOMETRY_ABI_VERSION=99, a library the host must refuse, and once with
+ * -DC_ODOMETRY_REVISION_1, a table of revision 1's size whose later fields must be unread).
  */
 #include <math.h>
 #include <stdio.h>
@@ -27,6 +36,8 @@ typedef struct {
     int fault; /* 0 none, 2 error, 3 segfault */
     long after;
     long seen;
+    double rings; /* the rig's lidar rings (typed rig), 0: unknown */
+    long checked; /* messages of other sensors checked */
 } odometry;
 
 static char create_error[128];
@@ -43,7 +54,7 @@ static const char *value_of(const char *toml, const char *key) {
 }
 
 static void *create(const char *config_toml, const char *rig_toml) {
-    if (!strstr(rig_toml, "kind = \"wheel_odometry\"")) {
+    if (!rig_toml || !strstr(rig_toml, "kind = \"wheel_odometry\"")) {
         snprintf(create_error, sizeof create_error, "c-odometry: the rig has no wheel odometry");
         return NULL;
     }
@@ -62,6 +73,85 @@ static void *create(const char *config_toml, const char *rig_toml) {
     const char *after = value_of(config_toml, "after");
     o->after = after ? strtol(after, NULL, 10) : 0;
     return o;
+}
+
+/* Revision 2: the rig typed. */
+static void *create_with(const vb_create_info *info) {
+    if (info->abi_revision < 2 || !info->rig) {
+        snprintf(create_error, sizeof create_error, "c-odometry: create_with without a typed rig");
+        return NULL;
+    }
+    if (!vb_rig_first(info->rig, "wheel_odometry")) {
+        snprintf(create_error, sizeof create_error, "c-odometry: the rig has no wheel odometry");
+        return NULL;
+    }
+    odometry *o = create(info->config_toml, info->rig_toml);
+    if (o) vb_sensor_intrinsic(vb_rig_first(info->rig, "lidar"), "rings", &o->rings);
+    return o;
+}
+
+static const char *requirements_for(const char *config_toml) {
+    const char *sensors = value_of(config_toml, "sensors");
+    if (sensors && strncmp(sensors, "all", 3) == 0)
+        return "sensors = [\"wheel_odometry\", \"imu\", \"lidar\", \"scan2d\", \"rgbd\"]\n"
+               "mode = \"online\"\n";
+    return "sensors = [\"wheel_odometry\"]\nmode = \"online\"\n";
+}
+
+static int32_t refuse(odometry *o, const char *what, int64_t stamp_ns) {
+    snprintf(o->error, sizeof o->error, "c-odometry: %s at %lld ns", what, (long long)stamp_ns);
+    return VB_ERROR;
+}
+
+static int32_t on_imu(void *self, const vb_imu *m, vb_pose *estimate) {
+    (void)estimate;
+    odometry *o = self;
+    for (int i = 0; i < 3; i++)
+        if (!isfinite(m->accel_mps2[i]) || !isfinite(m->gyro_rps[i]))
+            return refuse(o, "a non-finite IMU reading", m->stamp_ns);
+    o->checked++;
+    return VB_NO_POSE;
+}
+
+static int32_t on_point_cloud(void *self, const vb_point_cloud *m, vb_pose *estimate) {
+    (void)estimate;
+    odometry *o = self;
+    if (m->sensor_len == 0 || !m->sensor) return refuse(o, "a cloud without its sensor", m->stamp_ns);
+    if (m->n_points > 0 && !m->points) return refuse(o, "a cloud's points are NULL", m->stamp_ns);
+    for (size_t i = 0; i < m->n_points; i++) {
+        const vb_lidar_point *p = &m->points[i];
+        if (o->rings > 0 && p->ring >= o->rings)
+            return refuse(o, "a point's ring beyond the rig's rings (layout?)", m->stamp_ns);
+        if (!(p->time_s >= 0.0f && p->time_s < 1.0f))
+            return refuse(o, "a point's time outside its sweep (layout?)", m->stamp_ns);
+    }
+    o->checked++;
+    return VB_NO_POSE;
+}
+
+static int32_t on_laser_scan(void *self, const vb_laser_scan *m, vb_pose *estimate) {
+    (void)estimate;
+    odometry *o = self;
+    if (m->n_ranges > 0 && !m->ranges_m) return refuse(o, "a scan's ranges are NULL", m->stamp_ns);
+    if (m->n_intensities != 0 && m->n_intensities != m->n_ranges)
+        return refuse(o, "a scan's intensities and ranges differ in number (layout?)", m->stamp_ns);
+    if (!(m->range_max_m > m->range_min_m)) return refuse(o, "a scan's range limits", m->stamp_ns);
+    o->checked++;
+    return VB_NO_POSE;
+}
+
+static int32_t on_rgbd(void *self, const vb_rgbd_frame *m, vb_pose *estimate) {
+    (void)estimate;
+    odometry *o = self;
+    size_t pixels = (size_t)m->width * m->height;
+    if (m->rgb_len != 3 * pixels || m->depth_len != pixels)
+        return refuse(o, "a frame's colour or depth size is not its width x height (layout?)",
+                      m->stamp_ns);
+    if (pixels > 0 && (!m->rgb || !m->depth_m)) return refuse(o, "a frame's images are NULL", m->stamp_ns);
+    if (!(m->intrinsics[0] > 0.0 && m->intrinsics[1] > 0.0))
+        return refuse(o, "a frame's focal lengths (layout?)", m->stamp_ns);
+    o->checked++;
+    return VB_NO_POSE;
 }
 
 static void destroy(void *self) {
@@ -101,6 +191,8 @@ static int32_t on_wheel_odometry(void *self, const vb_wheel_odometry *m, vb_pose
                  (long long)m->stamp_ns);
         return VB_ERROR;
     }
+    if (!isfinite(m->linear_mps) || !isfinite(m->angular_rps))
+        return refuse(o, "non-finite wheel speeds", m->stamp_ns);
     if (o->have_last) {
         double dt = (double)(m->stamp_ns - o->last_ns) * 1e-9;
         double dyaw = m->angular_rps * dt;
@@ -155,17 +247,31 @@ static int32_t finish(void *self, vb_output *out) {
 #define C_ODOMETRY_ABI_VERSION VB_ABI_VERSION
 #endif
 
+/* Built with -DC_ODOMETRY_REVISION_1, the table claims revision 1's size: the host must read
+ * neither `requirements_for` nor `create_with`, though they are set. */
+#ifdef C_ODOMETRY_REVISION_1
+#define C_ODOMETRY_TABLE_SIZE VB_PLUGIN_SIZE_REVISION_1
+#else
+#define C_ODOMETRY_TABLE_SIZE sizeof(vb_plugin)
+#endif
+
 static const vb_plugin table = {
     .abi_version = C_ODOMETRY_ABI_VERSION,
-    .struct_size = sizeof(vb_plugin),
+    .struct_size = C_ODOMETRY_TABLE_SIZE,
     .name = "c-odometry",
     .version = "0.1.0",
     .requirements_toml = "sensors = [\"wheel_odometry\"]\nmode = \"online\"\n",
     .create = create,
     .destroy = destroy,
     .last_error = last_error,
+    .on_imu = on_imu,
     .on_wheel_odometry = on_wheel_odometry,
+    .on_point_cloud = on_point_cloud,
+    .on_laser_scan = on_laser_scan,
+    .on_rgbd = on_rgbd,
     .finish = finish,
+    .requirements_for = requirements_for,
+    .create_with = create_with,
 };
 
 const vb_plugin *vinebench_plugin_v1(void) { return &table; }

@@ -120,3 +120,64 @@ class Noop:
 
     def finish(self):
         return {"trajectory": []}
+
+
+class Conformance(WheelOdometry):
+    """The Python door's conformance fixture (`vinebench check-plugin`): asks for every
+    sensor, checks each message's fields against each other and the rig (point rings below
+    the lidar's `rings`, image sizes from width and height, scan intensities beside ranges),
+    answering a mismatch with an error; and returns a grid and a loop with its relative pose
+    from finish(), so that both cross the door."""
+
+    @staticmethod
+    def requirements(params):
+        return ["wheel_odometry", "imu", "lidar", "scan2d", "rgbd"]
+
+    def __init__(self, params, rig):
+        super().__init__(params, rig)
+        lidar = [s for s in rig["sensors"] if s["kind"] == "lidar"]
+        self.rings = lidar[0]["intrinsics"].get("rings", 0) if lidar else 0
+        self.checked = 0
+
+    def on_imu(self, imu):
+        if not (np.all(np.isfinite(imu.accel)) and np.all(np.isfinite(imu.gyro))):
+            raise ValueError(f"a non-finite IMU reading at {imu.stamp_ns} ns")
+        self.checked += 1
+
+    def on_point_cloud(self, cloud):
+        p = cloud.points
+        if len(p) and self.rings and int(p["ring"].max()) >= self.rings:
+            raise ValueError("a point's ring beyond the rig's rings (layout?)")
+        if len(p) and not (np.all(p["time_s"] >= 0) and np.all(p["time_s"] < 1)):
+            raise ValueError("a point's time outside its sweep (layout?)")
+        self.checked += 1
+
+    def on_laser_scan(self, scan):
+        if len(scan.intensities) not in (0, len(scan.ranges)):
+            raise ValueError("a scan's intensities and ranges differ in number (layout?)")
+        self.checked += 1
+
+    def on_rgbd(self, frame):
+        if frame.rgb.shape != (frame.height, frame.width, 3) or frame.depth.shape != (frame.height, frame.width):
+            raise ValueError("a frame's images are not its width x height (layout?)")
+        self.checked += 1
+
+    def finish(self):
+        out = super().finish()
+        if self.trajectory:
+            first, last = self.trajectory[0][0], self.trajectory[-1][0]
+            out["events"] = [
+                {
+                    "stamp_ns": last,
+                    "kind": "loop_closure_accepted",
+                    "detail": f"{self.checked} other messages checked",
+                    "loop_stamps_ns": [last, first],
+                    "loop_relative_pose": np.linalg.inv(self.trajectory[0][1]) @ self.trajectory[-1][1],
+                }
+            ]
+        out["grid"] = {
+            "resolution": 0.5,
+            "origin": (-1.0, -2.0, 0.0),
+            "cells": np.array([[-1, 0, 100], [0, 50, 0]], dtype=np.int8),
+        }
+        return out

@@ -10,7 +10,7 @@ use crate::bench_config::BenchConfig;
 use crate::cmd::progress::Progress;
 use crate::report::load::IndexedRun;
 use crate::report::reference;
-use crate::results::{RunOutcome, Staging};
+use crate::results::{RunOutcome, RunStatus, Staging, files};
 use crate::runner::{Plan, PlannedRun};
 
 #[derive(Debug, Args)]
@@ -28,6 +28,10 @@ pub struct BenchArgs {
     /// default: whole routes). The table then says the routes were cut.
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub max_time: Option<f64>,
+    /// Exit 0 even when some runs failed (the table says which and why); by default the
+    /// exit code is 3 then.
+    #[arg(long)]
+    pub allow_failures: bool,
 }
 
 /// Runs at once when nobody says: one per core.
@@ -81,7 +85,55 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         share_simulation: cfg.share_simulation,
         bars: true,
     };
-    bench(&plan, &out, &labels, cfg.paper_table.as_deref()).map(drop)
+    let outcomes = bench(&plan, &out, &labels, cfg.paper_table.as_deref())?;
+    failures_exit(&outcomes, args.allow_failures)
+}
+
+/// Exit code 3 ([`crate::cmd::Exit`]) when any run failed, unless `allow`.
+pub fn failures_exit(outcomes: &[RunOutcome], allow: bool) -> anyhow::Result<()> {
+    let failed = outcomes
+        .iter()
+        .filter(|o| matches!(o.status, RunStatus::Failed(_)))
+        .count();
+    if failed > 0 && !allow {
+        return Err(crate::cmd::Exit::failures(format!(
+            "{failed} of {} runs failed (the table says why; --allow-failures to exit 0)",
+            outcomes.len()
+        ))
+        .into());
+    }
+    Ok(())
+}
+
+/// What determines a plan's runs, hashed: an interrupted bench resumes only the same plan.
+fn fingerprint(plan: &Plan) -> anyhow::Result<String> {
+    use sha2::Digest as _;
+    let mut h = sha2::Sha256::new();
+    let world = match &plan.world {
+        Some(p) => std::fs::read(p).with_context(|| p.display().to_string())?,
+        None => b"built-in".to_vec(),
+    };
+    h.update(&world);
+    h.update(format!(
+        "{}|{:?}|{:?}|{}|{:?}",
+        plan.seed,
+        plan.scenarios,
+        plan.max_time_s,
+        plan.alignment.name(),
+        plan.dataset
+    ));
+    for r in &plan.runs {
+        h.update(format!(
+            "|{}|{}|{}|{}|{:?}",
+            r.scenario,
+            r.label,
+            r.plugin.display(),
+            r.params_toml,
+            r.pace
+        ));
+    }
+    h.update(env!("CARGO_PKG_VERSION"));
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// Runs a plan into the results folder `out` (written whole, then moved into place), writes
@@ -94,23 +146,121 @@ pub fn bench(
     labels: &[String],
     paper_table: Option<&Path>,
 ) -> anyhow::Result<Vec<RunOutcome>> {
-    let staging = Staging::begin(out)?;
+    crate::runner::interrupt::install();
     if let Some(path) = paper_table {
-        // Checked before anything runs; copied so that the folder reports alone.
+        // Checked before anything runs.
         reference::Reference::load(path)?;
-        let copy = staging.dir().join(reference::FILE);
-        std::fs::copy(path, &copy).with_context(|| copy.display().to_string())?;
     }
-    // Weighed by route length: the runs of a bench differ in length more than in speed.
-    let weights = crate::runner::route_seconds(plan).ok();
-    let progress = Progress::new(plan.runs.len(), weights, false);
-    let outcomes = crate::runner::execute(plan, staging.dir(), &|i, outcome| {
-        progress.finished(
-            i,
-            &format!("{}/{}", outcome.scenario, outcome.label),
-            outcome,
+    let (staging, resumed) = Staging::begin_resumable(out, &fingerprint(plan)?)?;
+    let finished = |plan: &Plan, dir: &Path| {
+        plan.runs.iter().any(|r| {
+            dir.join(&r.scenario)
+                .join(&r.label)
+                .join(files::STATUS)
+                .is_file()
+        })
+    };
+    match bench_in(plan, out, labels, paper_table, staging, resumed) {
+        Ok(outcomes) => Ok(outcomes),
+        Err((e, Some(staging))) => {
+            // A failure of the bench itself: what finished stays for a resume, a folder with
+            // nothing finished in it is removed (no half-written results).
+            if !finished(plan, staging.dir()) {
+                let _ = staging.discard();
+            }
+            Err(e)
+        }
+        Err((e, None)) => Err(e),
+    }
+}
+
+/// [`bench`] in its staging folder; on failure the error and the folder, if still held.
+fn bench_in(
+    plan: &Plan,
+    out: &Path,
+    labels: &[String],
+    paper_table: Option<&Path>,
+    staging: Staging,
+    resumed: bool,
+) -> Result<Vec<RunOutcome>, (anyhow::Error, Option<Staging>)> {
+    macro_rules! tri {
+        ($e:expr) => {
+            match $e {
+                Ok(v) => v,
+                Err(e) => return Err((anyhow::Error::from(e), Some(staging))),
+            }
+        };
+    }
+    if let Some(path) = paper_table {
+        // Copied so that the folder reports alone.
+        let copy = staging.dir().join(reference::FILE);
+        tri!(std::fs::copy(path, &copy).with_context(|| copy.display().to_string()));
+    }
+    // Runs a resumed folder already holds (their status written as they ended) are kept;
+    // the others (never started, or interrupted) run now.
+    let mut kept: Vec<Option<RunOutcome>> = vec![None; plan.runs.len()];
+    for (i, run) in plan.runs.iter().enumerate() {
+        let dir = staging.dir().join(&run.scenario).join(&run.label);
+        let folder = crate::results::RunFolder::new(&dir);
+        match std::fs::read_to_string(folder.path(files::STATUS)) {
+            Ok(text) if resumed => {
+                kept[i] = Some(RunOutcome {
+                    scenario: run.scenario.clone(),
+                    label: run.label.clone(),
+                    status: RunStatus::from_text(text.trim()),
+                    max_time_s: plan.max_time_s,
+                    folder,
+                });
+            }
+            _ if dir.exists() => {
+                tri!(std::fs::remove_dir_all(&dir).with_context(|| dir.display().to_string()));
+            }
+            _ => {}
+        }
+    }
+    let todo: Vec<usize> = (0..plan.runs.len())
+        .filter(|&i| kept[i].is_none())
+        .collect();
+    if resumed {
+        crate::out!(
+            "resuming {}: {} of {} runs already finished",
+            crate::results::partial_path(out).display(),
+            plan.runs.len() - todo.len(),
+            plan.runs.len()
         );
-    })?;
+    }
+    let sub = Plan {
+        runs: todo.iter().map(|&i| plan.runs[i].clone()).collect(),
+        ..plan.clone()
+    };
+    // Weighed by route length: the runs of a bench differ in length more than in speed.
+    let weights = crate::runner::route_seconds(&sub).ok();
+    let progress = Progress::new(sub.runs.len(), weights, false);
+    let ran = if sub.runs.is_empty() {
+        Vec::new()
+    } else {
+        tri!(crate::runner::execute(
+            &sub,
+            staging.dir(),
+            &|i, outcome| {
+                progress.finished(
+                    i,
+                    &format!("{}/{}", outcome.scenario, outcome.label),
+                    outcome,
+                );
+            }
+        ))
+    };
+    for (k, outcome) in ran.into_iter().enumerate() {
+        kept[todo[k]] = Some(outcome);
+    }
+    let outcomes: Vec<RunOutcome> = kept
+        .into_iter()
+        .map(|o| o.expect("every run kept or run"))
+        .collect();
+    if crate::runner::interrupt::interrupted() {
+        return Err((interrupted(staging, out, &outcomes), None));
+    }
     let index: Vec<IndexedRun> = outcomes
         .iter()
         .map(|o| IndexedRun {
@@ -121,13 +271,46 @@ pub fn bench(
         })
         .collect();
     let name = crate::results::folder_name(out);
-    let table = crate::report::write_bench(staging.dir(), &name, &plan.scenarios, labels, &index)?;
-    let dir = staging.commit()?;
-    println!("{table}");
-    println!("results: {}", dir.display());
-    println!(
+    let table = tri!(crate::report::write_bench(
+        staging.dir(),
+        &name,
+        &plan.scenarios,
+        labels,
+        &index
+    ));
+    let dir = staging.commit().map_err(|e| (e, None))?;
+    crate::out!("{table}");
+    crate::out!("results: {}", dir.display());
+    crate::out!(
         "report: {}",
         dir.join(crate::report::html::REPORT).display()
     );
     Ok(outcomes)
+}
+
+/// After Ctrl-C: keeps the partial folder if any run finished (the same command resumes
+/// it), else removes it; the error says which.
+fn interrupted(staging: Staging, out: &Path, outcomes: &[RunOutcome]) -> anyhow::Error {
+    let finished = outcomes
+        .iter()
+        .filter(|o| !matches!(&o.status, RunStatus::Failed(why) if crate::runner::interrupt::is_interruption(why)))
+        .count();
+    let partial = staging.dir().to_owned();
+    let message = if finished == 0 {
+        match staging.discard() {
+            Ok(()) => format!(
+                "interrupted before any run finished: removed {}",
+                partial.display()
+            ),
+            Err(e) => format!("interrupted; could not remove {}: {e:#}", partial.display()),
+        }
+    } else {
+        format!(
+            "interrupted: {finished} of {} runs finished and are kept in {}; run the same command again to resume (the other runs), or remove that folder; {} is unchanged",
+            outcomes.len(),
+            partial.display(),
+            out.display()
+        )
+    };
+    crate::cmd::Exit::interrupted(message).into()
 }

@@ -250,19 +250,22 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         plot_trajectories(path, &pairs.reference, &pairs.estimate, &pose_errors)?;
     }
     if args.json {
-        println!("{}", json_line(&stats)?);
+        crate::out!("{}", json_line(&stats)?);
         return Ok(());
     }
-    println!(
+    crate::out!(
         "{title}\n{}\n",
         alignment_note(alignment, args.n_to_align, &transform)
     );
-    println!("{}", table(&stats));
+    crate::out!("{}", table(&stats));
     if let Some((step, drifts)) = drifts {
-        println!("\nKITTI-style drift (segments every {step} poses)");
-        println!(
+        crate::out!("\nKITTI-style drift (segments every {step} poses)");
+        crate::out!(
             "{:>10}  {:>8}  {:>14}  {:>18}",
-            "length m", "segments", "translation %", "rotation deg/100m"
+            "length m",
+            "segments",
+            "translation %",
+            "rotation deg/100m"
         );
         for d in drifts {
             let length = if d.length > 0.0 {
@@ -270,9 +273,11 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
             } else {
                 "all".to_owned()
             };
-            println!(
+            crate::out!(
                 "{length:>10}  {:>8}  {:>14.6}  {:>18.6}",
-                d.segments, d.translation_percent, d.rotation_deg_per_100m
+                d.segments,
+                d.translation_percent,
+                d.rotation_deg_per_100m
             );
         }
     }

@@ -63,7 +63,7 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
         dump.write(&message)?;
     }
     let dir = dump.finish()?;
-    println!(
+    crate::out!(
         "wrote {}: groundtruth.tum, {frames} RGB-D frames in rgbd/, {sweeps} lidar sweeps in lidar/ ({:.2} s)",
         dir.display(),
         started.elapsed().as_secs_f64()

@@ -14,7 +14,7 @@ pub struct PluginsArgs {
 
 pub fn run(args: &PluginsArgs) -> anyhow::Result<()> {
     let dirs = crate::plugins::search_path(&args.plugin_dirs);
-    let mut found = 0;
+    let (mut found, mut broken, mut others) = (0, 0, 0);
     for path in crate::plugins::candidates(&dirs) {
         match plugin_api::load(&path) {
             Ok(p) => {
@@ -23,24 +23,36 @@ pub fn run(args: &PluginsArgs) -> anyhow::Result<()> {
                     plugin_api::Mode::Online => "online",
                     plugin_api::Mode::Offline => "offline",
                 };
-                println!(
-                    "{}\t{}\t{} [{}]\t{}",
+                crate::out!(
+                    "{}\t{}\t{} [{}]\t{}\t{}",
                     p.name,
                     p.version,
                     mode,
                     sensors.join(","),
+                    p.door().name(),
                     path.display()
                 );
                 found += 1;
             }
-            // Other shared libraries in the same folders are not plugins: say nothing.
-            Err(LoadError::Other { .. }) => {}
-            Err(e) => println!("(unusable)\t{e}"),
+            // Other shared libraries in the same folders are not plugins: counted, not listed.
+            Err(LoadError::NotAPlugin { .. }) => others += 1,
+            // A library that exports a plugin's symbol but cannot be used: listed with why.
+            Err(e) => {
+                crate::out!("(broken)\t{e}");
+                broken += 1;
+            }
         }
     }
+    let searched: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
     if found == 0 {
-        let searched: Vec<String> = dirs.iter().map(|d| d.display().to_string()).collect();
         eprintln!("no plugins found in {}", searched.join(", "));
+    }
+    if broken > 0 || others > 0 {
+        eprintln!(
+            "{found} plugin(s), {broken} broken, {others} other librar{} (not plugins) in {}",
+            if others == 1 { "y" } else { "ies" },
+            searched.join(", ")
+        );
     }
     Ok(())
 }

@@ -86,7 +86,7 @@ impl Progress {
                 } else {
                     elapsed / k as f64 * (self.total - k) as f64
                 };
-                println!("{line} (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
+                crate::out!("{line} (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
             }
         }
     }

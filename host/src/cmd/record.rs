@@ -84,14 +84,14 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let simulated = duration_ns as f64 * 1e-9;
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
-    println!(
+    crate::out!(
         "wrote {} ({:.1} MB): {simulated:.1} s of {}; messages: {}",
         args.output.display(),
         bytes as f64 / 1e6,
         args.sim.scenario,
         summary.join(", ")
     );
-    println!("wall time: {wall:.2} s");
-    println!("real-time factor: {:.2}", simulated / wall);
+    crate::out!("wall time: {wall:.2} s");
+    crate::out!("real-time factor: {:.2}", simulated / wall);
     Ok(())
 }

@@ -13,6 +13,6 @@ pub struct ReportArgs {
 
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     let (path, bytes) = crate::report::rebuild_html(&args.dir)?;
-    println!("{} ({bytes} bytes)", path.display());
+    crate::out!("{} ({bytes} bytes)", path.display());
     Ok(())
 }

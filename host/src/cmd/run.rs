@@ -17,9 +17,21 @@ pub struct RunArgs {
     /// Plugin name (searched for) or path to its library.
     #[arg(long)]
     pub plugin: String,
-    /// The plugin's parameters (TOML), handed to it verbatim.
+    /// The plugin's parameters (TOML), handed to it verbatim. Relative paths in it (a Python
+    /// class's `path` and `venv`, say) are relative to this file's folder, as in a bench file.
     #[arg(long)]
     pub plugin_config: Option<PathBuf>,
+    /// The run's label: its folder's name and its column in the table (default: the
+    /// plugin's name).
+    #[arg(long)]
+    pub label: Option<String>,
+    /// How fast to feed the plugin: `free` (as fast as it takes the messages) or `realtime`
+    /// (no faster than simulated time), as a bench file's `pace`.
+    #[arg(long, default_value = "free")]
+    pub pace: String,
+    /// Exit 0 even when the run failed (the results folder says why).
+    #[arg(long)]
+    pub allow_failures: bool,
     /// Results folder (default: results/run).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -43,10 +55,18 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let max_time_s = args.sim.max_time_s()?;
     let dirs = crate::plugins::search_path(&args.plugin_dirs);
     let path = crate::plugins::resolve(&args.plugin, &dirs)?;
-    let params_toml = match &args.plugin_config {
-        Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
-        None => String::new(),
+    let (params_toml, base_dir) = match &args.plugin_config {
+        Some(p) => (
+            std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
+            crate::plugins::folder_of(p)?,
+        ),
+        // The worker runs in its run folder: without a file, relative paths are relative
+        // to where `vinebench run` was started.
+        None => (String::new(), std::env::current_dir()?),
     };
+    let pace: crate::runner::Pace = toml::Value::String(args.pace.clone())
+        .try_into()
+        .map_err(|_| anyhow::anyhow!("--pace {}: expected free or realtime", args.pace))?;
     let align: Align = toml::Value::String(args.align.clone())
         .try_into()
         .map_err(|_| {
@@ -60,7 +80,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         "--timeout-s {}: must be positive",
         args.timeout_s
     );
-    let label = plugin_label(&args.plugin);
+    let label = match &args.label {
+        Some(label) => {
+            anyhow::ensure!(
+                !label.is_empty() && !label.contains(['/', '\\']) && label != "." && label != "..",
+                "--label {label:?}: must be a folder name (no slashes)"
+            );
+            label.clone()
+        }
+        None => plugin_label(&args.plugin),
+    };
     let out = args
         .out
         .clone()
@@ -74,10 +103,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             label: label.clone(),
             plugin: path,
             params_toml,
-            pace: crate::runner::Pace::Free,
-            // The worker runs in its run folder: relative paths in the plugin's parameters
-            // are relative to where `vinebench run` was started.
-            base_dir: Some(std::env::current_dir()?),
+            pace,
+            base_dir: Some(base_dir),
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(args.timeout_s),
@@ -92,15 +119,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let outcomes = crate::cmd::bench::bench(&plan, &out, std::slice::from_ref(&label), None)?;
     // One run: its failure is the command's failure (the results folder is still written).
     match outcomes.first().map(|r| &r.status) {
-        Some(crate::results::RunStatus::Failed(why)) => {
-            anyhow::bail!("{label} on {} failed: {why}", args.sim.scenario)
-        }
+        Some(crate::results::RunStatus::Failed(why)) if !args.allow_failures => Err(
+            crate::cmd::Exit::failures(format!("{label} on {} failed: {why}", args.sim.scenario))
+                .into(),
+        ),
         _ => Ok(()),
     }
 }
 
 /// A column label for a plugin given by name or path.
-fn plugin_label(name_or_path: &str) -> String {
+pub fn plugin_label(name_or_path: &str) -> String {
     let stem = std::path::Path::new(name_or_path)
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -76,13 +76,13 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let wall = started.elapsed().as_secs_f64();
     let simulated = duration_ns as f64 * 1e-9;
     let summary: Vec<String> = counts.iter().map(|(k, v)| format!("{k} {v}")).collect();
-    println!(
+    crate::out!(
         "scenario {}: {:.1} m in {simulated:.1} s simulated; messages: {}; lidar points {lidar_points}",
         args.sim.scenario,
         crate::dump::path_length(&sim),
         summary.join(", ")
     );
-    println!("wall time: {wall:.2} s");
-    println!("real-time factor: {:.2}", simulated / wall);
+    crate::out!("wall time: {wall:.2} s");
+    crate::out!("real-time factor: {:.2}", simulated / wall);
     Ok(())
 }

@@ -80,7 +80,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             .map(|c| &c.key)
             .collect::<std::collections::BTreeSet<_>>()
             .len();
-        println!(
+        crate::out!(
             "{}: {} runs, {} done, {} to run",
             args.file.display(),
             distinct,
@@ -91,6 +91,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             let progress = Progress::new(missing.len(), None, true);
             match args.executor {
                 Executor::Local => {
+                    crate::runner::interrupt::install();
                     let jobs = args
                         .jobs
                         .or(sweep.cfg.jobs)
@@ -106,7 +107,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
                         sbatch_args: args.sbatch_args.clone(),
                     };
                     let ids = slurm::submit(&sweep, &out, &missing, &options)?;
-                    println!("submitted Slurm job array {}", ids.join(", "));
+                    crate::out!("submitted Slurm job array {}", ids.join(", "));
                     slurm::wait(
                         &ids,
                         &out,
@@ -121,9 +122,9 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     }
     let agg = aggregate::collect(&sweep, &out)?;
     crate::report::sweep::write(&agg, &out)?;
-    println!("{}", crate::report::sweep::render_markdown(&agg));
-    println!("results: {}", out.display());
-    println!(
+    crate::out!("{}", crate::report::sweep::render_markdown(&agg));
+    crate::out!("results: {}", out.display());
+    crate::out!(
         "report: {}",
         out.join(crate::report::html::REPORT).display()
     );

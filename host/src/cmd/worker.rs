@@ -13,25 +13,66 @@ use crate::runner::{Job, worker};
 #[derive(Debug, Args)]
 pub struct WorkerArgs {
     /// The job file written by the supervisor.
-    #[arg(long, required_unless_present = "sensors")]
+    #[arg(long, required_unless_present_any = ["sensors", "describe", "check"])]
     pub job: Option<PathBuf>,
     /// Print the sensors this plugin library asks for (one line, comma-separated) and exit.
     #[arg(long, conflicts_with = "job")]
     pub sensors: Option<PathBuf>,
-    /// With `--sensors`: the plugin's parameter table (TOML), for a plugin whose sensors
-    /// depend on it.
-    #[arg(long, requires = "sensors", default_value = "")]
+    /// Print the plugin library's name, version and door (tab-separated) and exit.
+    #[arg(long, conflicts_with_all = ["job", "sensors"])]
+    pub describe: Option<PathBuf>,
+    /// Run one check of `vinebench check-plugin` on `--plugin` (crate::conformance).
+    #[arg(long, conflicts_with_all = ["job", "sensors", "describe"], requires = "plugin")]
+    pub check: Option<String>,
+    /// With `--check`: the plugin library.
+    #[arg(long)]
+    pub plugin: Option<PathBuf>,
+    /// With `--check`: the world file (default: the built-in world).
+    #[arg(long)]
+    pub world: Option<PathBuf>,
+    /// With `--check`: the scenario whose route is fed.
+    #[arg(long, default_value = "s1")]
+    pub scenario: String,
+    /// With `--check`: simulated seconds of the route check.
+    #[arg(long, default_value_t = 8.0)]
+    pub route_s: f64,
+    /// With `--sensors` or `--check`: the plugin's parameter table (TOML), for a plugin
+    /// whose sensors depend on it.
+    #[arg(long, default_value = "")]
     pub params: String,
 }
 
 pub fn run(args: &WorkerArgs) -> anyhow::Result<()> {
+    if let Some(plugin) = &args.describe {
+        let loaded = plugin_api::load(plugin)?;
+        crate::out!(
+            "{}\t{}\t{}",
+            loaded.name,
+            loaded.version,
+            loaded.door().name()
+        );
+        return Ok(());
+    }
+    if let Some(name) = &args.check {
+        let check = crate::conformance::check_named(name)?;
+        let plugin = args.plugin.as_deref().expect("clap requires --plugin");
+        let subject = crate::conformance::subject_from_args(
+            plugin,
+            &args.params,
+            args.world.as_deref(),
+            &args.scenario,
+            args.route_s,
+        )?;
+        exit_with_parent();
+        return crate::conformance::run_check(check, &subject);
+    }
     if let Some(plugin) = &args.sensors {
         let loaded = plugin_api::load(plugin)?;
         let requirements = loaded
             .requirements_for(&args.params)
             .map_err(|e| anyhow::anyhow!("plugin {}: {e}", loaded.name))?;
         let names: Vec<&str> = requirements.sensors.iter().map(|k| k.name()).collect();
-        println!("{}", names.join(","));
+        crate::out!("{}", names.join(","));
         return Ok(());
     }
     let path = args

@@ -12,6 +12,13 @@ use anyhow::Context as _;
 pub const MARKER: &str = ".vinebench-results";
 /// Marks a folder as a sweep folder, so a sweep may resume in it.
 pub const SWEEP_MARKER: &str = ".vinebench-sweep";
+/// Marks a bench's resumable folder ([`Staging::begin_resumable`]); holds its fingerprint.
+pub const PARTIAL: &str = ".vinebench-partial";
+
+/// Where a bench writing `target` keeps its runs until it is complete: `.<name>.partial`.
+pub fn partial_path(target: &Path) -> PathBuf {
+    target.with_file_name(format!(".{}.partial", folder_name(target)))
+}
 
 /// Whether `dir` is a sweep's folder (it has the sweep's marker file).
 pub fn is_sweep_folder(dir: &Path) -> bool {
@@ -37,18 +44,7 @@ pub fn folder_name(out: &Path) -> String {
 impl Staging {
     /// Starts writing `target`, which must be absent, empty or a vinebench results folder.
     pub fn begin(target: &Path) -> anyhow::Result<Self> {
-        if target.exists()
-            && !target.join(MARKER).exists()
-            && std::fs::read_dir(target)
-                .with_context(|| target.display().to_string())?
-                .next()
-                .is_some()
-        {
-            anyhow::bail!(
-                "{} exists and is not a vinebench results folder; choose another --out",
-                target.display()
-            );
-        }
+        Self::check_target(target)?;
         let tmp = target.with_file_name(format!(
             ".{}.tmp-{}",
             folder_name(target),
@@ -75,8 +71,71 @@ impl Staging {
         &self.target
     }
 
+    /// Starts writing `target` in a resumable folder beside it, `.<name>.partial`, marked
+    /// with `fingerprint` (what determines its runs): if one with the same fingerprint is
+    /// there (a bench interrupted by Ctrl-C, or one whose supervisor died), it is taken up
+    /// again, with the runs it holds; one with another fingerprint is replaced. Unlike
+    /// [`Staging::begin`]'s, the folder is not removed when dropped uncommitted: it is kept
+    /// for the next run of the same bench (or removed by [`Staging::discard`]). The second
+    /// value says whether it was taken up again.
+    pub fn begin_resumable(target: &Path, fingerprint: &str) -> anyhow::Result<(Self, bool)> {
+        Self::check_target(target)?;
+        let partial = partial_path(target);
+        let marker = partial.join(PARTIAL);
+        let mut resumed = false;
+        if partial.exists() {
+            match std::fs::read_to_string(&marker) {
+                Ok(text) if text.trim() == fingerprint => resumed = true,
+                Ok(_) => std::fs::remove_dir_all(&partial)
+                    .with_context(|| partial.display().to_string())?,
+                Err(_) => anyhow::bail!(
+                    "{} exists and is not a vinebench partial folder; remove it",
+                    partial.display()
+                ),
+            }
+        }
+        if !resumed {
+            std::fs::create_dir_all(&partial).with_context(|| partial.display().to_string())?;
+            std::fs::write(&marker, fingerprint).with_context(|| marker.display().to_string())?;
+        }
+        Ok((
+            Self {
+                target: target.to_owned(),
+                tmp: partial,
+                // Kept when dropped: what has finished stays for a resume.
+                committed: true,
+            },
+            resumed,
+        ))
+    }
+
+    /// Removes the folder being written (nothing in it is worth keeping).
+    pub fn discard(self) -> anyhow::Result<()> {
+        if self.tmp.exists() {
+            std::fs::remove_dir_all(&self.tmp).with_context(|| self.tmp.display().to_string())?;
+        }
+        Ok(())
+    }
+
+    fn check_target(target: &Path) -> anyhow::Result<()> {
+        if target.exists()
+            && !target.join(MARKER).exists()
+            && std::fs::read_dir(target)
+                .with_context(|| target.display().to_string())?
+                .next()
+                .is_some()
+        {
+            anyhow::bail!(
+                "{} exists and is not a vinebench results folder; choose another --out",
+                target.display()
+            );
+        }
+        Ok(())
+    }
+
     /// Marks the folder, replaces the target with it and points `latest` beside it at it.
     pub fn commit(mut self) -> anyhow::Result<PathBuf> {
+        let _ = std::fs::remove_file(self.tmp.join(PARTIAL));
         std::fs::File::create(self.tmp.join(MARKER))
             .with_context(|| self.tmp.join(MARKER).display().to_string())?;
         if self.target.exists() {

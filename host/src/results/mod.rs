@@ -21,7 +21,8 @@ mod maps;
 mod run;
 
 pub use folder::{
-    MARKER, SWEEP_MARKER, Staging, folder_name, is_sweep_folder, link_latest, write_atomic,
+    MARKER, PARTIAL, SWEEP_MARKER, Staging, folder_name, is_sweep_folder, link_latest,
+    partial_path, write_atomic,
 };
 pub use maps::{read_ply, write_grid, write_ply};
 pub use run::{
@@ -47,4 +48,7 @@ pub mod files {
     pub const RESULTS: &str = "results.mcap";
     pub const LOG: &str = "worker.log";
     pub const RUN: &str = "run.toml";
+    /// How the run ended (`RunStatus::text`), written as it ends: what lets an interrupted
+    /// bench resume without running it again.
+    pub const STATUS: &str = "status.txt";
 }

@@ -78,7 +78,8 @@ pub fn judge(
                     counts.add_rejected();
                     None
                 }
-                EventKind::TrackingLost | EventKind::TrackingRecovered => None,
+                // Tracking events, and kinds appended to the registry later, are not judged.
+                _ => None,
             };
             JudgedEvent {
                 event,

@@ -4,6 +4,7 @@
 
 mod evaluate;
 pub mod feed;
+pub mod interrupt;
 pub mod job;
 mod loops;
 mod supervise;
@@ -192,6 +193,18 @@ fn run_all(
             *slots -= need;
             drop(slots);
             let (dirs, progress, outcomes, release) = (&dirs, &progress, &outcomes, &release);
+            if interrupt::interrupted() {
+                // Nothing new starts after Ctrl-C; these runs were not run.
+                let mut outcomes = outcomes.lock().expect("no panics while holding the lock");
+                for &i in &group.runs {
+                    outcomes[i] = Some(not_run(&plan.runs[i], &dirs[i], plan));
+                }
+                drop(outcomes);
+                for _ in 0..need {
+                    release();
+                }
+                continue;
+            }
             scope.spawn(move || {
                 let left = Mutex::new(group.runs.len());
                 let done = |i: usize, outcome: RunOutcome| {
@@ -394,6 +407,9 @@ fn run_shared(
     let simulation = sim::Simulation::with_world(config, world.clone(), scenario, plan.seed);
     let end_ns = plan.max_time_s.map(job::max_time_ns);
     let stall = STALL.min(plan.timeout / 4);
+    let done_now = |i: usize, outcome: Result<(), String>| {
+        done(i, finish_run(&plan.runs[i], &dirs[i], plan, outcome));
+    };
     std::thread::scope(|scope| {
         let feeding = scope.spawn(move || match simulation {
             Ok(sim) => feed::Feed {
@@ -404,6 +420,7 @@ fn run_shared(
             .run(&sim, subscribers),
             Err(e) => Err(format!("{e}")),
         });
+        let done_now = &done_now;
         let watched: Vec<_> = started
             .into_iter()
             .map(|(i, child)| {
@@ -417,32 +434,46 @@ fn run_shared(
                         plan.memory_limit_mb,
                         &on_progress,
                     );
-                    (i, outcome)
+                    // A run that ended well is reported as it ends, whatever its groupmates
+                    // do; a failure waits for the simulation's account of it (a worker cut
+                    // off as stalled), below.
+                    match outcome {
+                        Ok(()) => {
+                            done_now(i, Ok(()));
+                            None
+                        }
+                        Err(why) => Some((i, why)),
+                    }
                 })
             })
             .collect();
-        let outcomes: Vec<(usize, Result<(), String>)> = watched
+        let failed: Vec<(usize, usize, String)> = watched
             .into_iter()
-            .map(|w| w.join().expect("a watcher does not panic"))
+            .enumerate()
+            .filter_map(|(k, w)| {
+                w.join()
+                    .expect("a watcher does not panic")
+                    .map(|(i, why)| (k, i, why))
+            })
             .collect();
         let deliveries = feeding
             .join()
             .map_err(|_| "the simulation panicked".to_owned());
-        for (k, (i, outcome)) in outcomes.into_iter().enumerate() {
-            let outcome = match (&deliveries, outcome) {
-                (Ok(Ok(d)), Err(why)) => match d.get(k) {
-                    Some(feed::Delivery::Stalled { .. }) => Err(format!(
+        for (k, i, why) in failed {
+            let why = match &deliveries {
+                _ if interrupt::is_interruption(&why) => why,
+                Ok(Ok(d)) => match d.get(k) {
+                    Some(feed::Delivery::Stalled { .. }) => format!(
                         "{why} (it took no data for {} s and was cut off from the shared simulation)",
                         stall.as_secs()
-                    )),
-                    _ => Err(why),
+                    ),
+                    _ => why,
                 },
-                (Ok(Err(sim_failed)) | Err(sim_failed), Err(why)) => Err(format!(
-                    "{why} (the shared simulation failed: {sim_failed})"
-                )),
-                (_, Ok(())) => Ok(()),
+                Ok(Err(sim_failed)) | Err(sim_failed) => {
+                    format!("{why} (the shared simulation failed: {sim_failed})")
+                }
             };
-            done(i, finish_run(&plan.runs[i], &dirs[i], plan, outcome));
+            done_now(i, Err(why));
         }
     });
 }
@@ -459,7 +490,21 @@ fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunO
     finish_run(run, dir, plan, outcome)
 }
 
-/// A run's outcome once its worker has ended: scored if it succeeded.
+/// The outcome of a run that was not started because of Ctrl-C.
+fn not_run(run: &PlannedRun, dir: &Path, plan: &Plan) -> RunOutcome {
+    let folder = RunFolder::new(dir);
+    let _ = std::fs::remove_file(folder.path(files::JOB));
+    RunOutcome {
+        scenario: run.scenario.clone(),
+        label: run.label.clone(),
+        status: RunStatus::Failed(interrupt::REASON.to_owned()),
+        max_time_s: plan.max_time_s,
+        folder,
+    }
+}
+
+/// A run's outcome once its worker has ended: scored if it succeeded; its status written
+/// unless it was interrupted (an interrupted run counts as not run).
 fn finish_run(
     run: &PlannedRun,
     dir: &Path,
@@ -475,6 +520,10 @@ fn finish_run(
         Ok(()) => RunStatus::Ok,
         Err(why) => RunStatus::Failed(why),
     };
+    let interrupted = matches!(&status, RunStatus::Failed(why) if interrupt::is_interruption(why));
+    if !interrupted {
+        let _ = std::fs::write(folder.path(files::STATUS), status.text());
+    }
     RunOutcome {
         scenario: run.scenario.clone(),
         label: run.label.clone(),

@@ -43,6 +43,9 @@ pub fn spawn(
     // The worker runs in its run folder, so a relative output path in a plugin's
     // parameters (lio-sam's `profile_csv`, say) lands beside the run's other files.
     let mut command = Command::new(exe);
+    // A process group of its own: the terminal's Ctrl-C reaches the supervisor only, which
+    // stops the workers itself and keeps what has finished (`super::interrupt`).
+    std::os::unix::process::CommandExt::process_group(&mut command, 0);
     if let Some(dir) = base_dir {
         command.env("VINEBENCH_BENCH_DIR", dir);
     }
@@ -90,6 +93,11 @@ pub fn watch(
                     let _ = child.kill();
                     let _ = child.wait();
                     return Err(format!("timed out after {} s", timeout.as_secs_f64()));
+                }
+                Ok(None) if super::interrupt::interrupted() => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    return Err(super::interrupt::REASON.to_owned());
                 }
                 Ok(None) => std::thread::sleep(POLL),
                 Err(e) => return Err(format!("lost the worker process: {e}")),

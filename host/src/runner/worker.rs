@@ -166,6 +166,17 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     for pose in &output.trajectory {
         check(pose, "final pose")?;
     }
+    if let Some(grid) = &output.grid
+        && grid.cells.len() != grid.width as usize * grid.height as usize
+    {
+        bail!(
+            "plugin {} returned a {}x{} grid with {} cells",
+            plugin.name,
+            grid.width,
+            grid.height,
+            grid.cells.len()
+        );
+    }
     write_outputs(&job.out_dir, &groundtruth, &online, &output)?;
     let wall = started.elapsed().as_secs_f64();
     // The simulated time fed: the route up to its limit.
@@ -207,7 +218,7 @@ fn check(pose: &Pose, what: &str) -> anyhow::Result<()> {
 }
 
 /// Hands one simulator message to the plugin.
-fn deliver(
+pub(crate) fn deliver(
     instance: &mut PluginInstance,
     message: &Message,
     points: &mut Vec<LidarPoint>,

@@ -169,6 +169,97 @@ pub fn value_text(v: &toml::Value) -> String {
     }
 }
 
+/// A sweep file's axes and seeds, and the world of every point of its axes: everything of a
+/// sweep but its plugins.
+#[derive(Debug, Clone)]
+pub struct Expansion {
+    pub axes: Vec<Axis>,
+    /// The seeds, in file order.
+    pub seeds: Vec<u64>,
+    /// Resolved worlds by key: their TOML text.
+    pub worlds: BTreeMap<String, String>,
+    /// Every point of the axes (last axis fastest) with the key of its world.
+    pub points: Vec<(Vec<toml::Value>, String)>,
+}
+
+/// Expands the axes and seeds of `cfg`, a sweep file called `name`, over the world whose
+/// TOML text is `base_world`; checks every resolved world and that it has the scenarios.
+pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result<Expansion> {
+    let mut axes = Vec::new();
+    for (path, values) in &cfg.axes {
+        let values = match values {
+            toml::Value::Array(a) if !a.is_empty() => a.clone(),
+            _ => anyhow::bail!("{name}: axes.\"{path}\": give a non-empty list of values"),
+        };
+        // A value may be a list (`"fence.panels" = [[]]`: no fence), not a table: an axis
+        // sets one key.
+        if let Some(v) = values.iter().find(|v| matches!(v, toml::Value::Table(_))) {
+            anyhow::bail!("{name}: axes.\"{path}\": {v} is a table, not a value of one key");
+        }
+        let distinct: BTreeSet<String> = values.iter().map(value_text).collect();
+        anyhow::ensure!(
+            distinct.len() == values.len(),
+            "{name}: axes.\"{path}\": a value is given twice"
+        );
+        axes.push(Axis {
+            path: path.clone(),
+            values,
+        });
+    }
+    let seeds = cfg
+        .seeds
+        .clone()
+        .unwrap_or_else(|| vec![cfg.seed.unwrap_or(0)]);
+    anyhow::ensure!(
+        seeds.iter().collect::<BTreeSet<_>>().len() == seeds.len(),
+        "{name}: seeds: a seed is given twice"
+    );
+
+    let base: toml::Table = base_world
+        .parse()
+        .map_err(|e: toml::de::Error| anyhow::anyhow!("{name}: world: {}", e.message()))?;
+    let mut worlds = BTreeMap::new();
+    let mut point_worlds = Vec::new();
+    for point in points(&axes) {
+        let mut table = base.clone();
+        for (axis, value) in axes.iter().zip(&point) {
+            set_dotted(&mut table, &axis.path, value.clone())
+                .map_err(|why| anyhow::anyhow!("{name}: axes.\"{}\": {why}", axis.path))?;
+        }
+        let text = toml::to_string(&table)?;
+        let origin = format!(
+            "{name} at {}",
+            axes.iter()
+                .zip(&point)
+                .map(|(a, v)| format!("{} = {}", a.path, value_text(v)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let world = sim::SimConfig::from_toml_str(&text, &origin)?;
+        for s in &cfg.scenarios {
+            anyhow::ensure!(
+                world.scenarios.contains_key(s),
+                "{name}: unknown scenario '{s}' (known: {})",
+                world
+                    .scenarios
+                    .keys()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        let key = short_hash(text.as_bytes());
+        worlds.insert(key.clone(), text);
+        point_worlds.push((point, key));
+    }
+    Ok(Expansion {
+        axes,
+        seeds,
+        worlds,
+        points: point_worlds,
+    })
+}
+
 impl Sweep {
     /// Reads and expands a sweep file; `max_time_s` (`--max-time`) overrides the file's.
     pub fn load(file: &Path, max_time_s: Option<f64>) -> anyhow::Result<Self> {
@@ -177,84 +268,22 @@ impl Sweep {
             cfg.max_time_s = max_time_s;
         }
         let name = file.display().to_string();
-        let mut axes = Vec::new();
-        for (path, values) in &cfg.axes {
-            let values = match values {
-                toml::Value::Array(a) if !a.is_empty() => a.clone(),
-                _ => anyhow::bail!("{name}: axes.\"{path}\": give a non-empty list of values"),
-            };
-            // A value may be a list (`"fence.panels" = [[]]`: no fence), not a table: an axis
-            // sets one key.
-            if let Some(v) = values.iter().find(|v| matches!(v, toml::Value::Table(_))) {
-                anyhow::bail!("{name}: axes.\"{path}\": {v} is a table, not a value of one key");
-            }
-            let distinct: BTreeSet<String> = values.iter().map(value_text).collect();
-            anyhow::ensure!(
-                distinct.len() == values.len(),
-                "{name}: axes.\"{path}\": a value is given twice"
-            );
-            axes.push(Axis {
-                path: path.clone(),
-                values,
-            });
-        }
-        let seeds = cfg
-            .seeds
-            .clone()
-            .unwrap_or_else(|| vec![cfg.seed.unwrap_or(0)]);
-        anyhow::ensure!(
-            seeds.iter().collect::<BTreeSet<_>>().len() == seeds.len(),
-            "{name}: seeds: a seed is given twice"
-        );
-
         let base_text = match &cfg.world {
             Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
             None => sim::DEFAULT_CONFIG_TOML.to_owned(),
         };
-        let base: toml::Table = base_text
-            .parse()
-            .map_err(|e: toml::de::Error| anyhow::anyhow!("{name}: world: {}", e.message()))?;
+        let Expansion {
+            axes,
+            seeds,
+            worlds,
+            points: point_worlds,
+        } = expand(&cfg, &name, &base_text)?;
         let exe_hash = exe_hash()?;
         let plugins = cfg.resolve_plugins(file)?;
         let plugin_hashes = plugins
             .iter()
             .map(|p| file_hash(&p.library))
             .collect::<anyhow::Result<Vec<_>>>()?;
-
-        let mut worlds = BTreeMap::new();
-        let mut point_worlds = Vec::new();
-        for point in points(&axes) {
-            let mut table = base.clone();
-            for (axis, value) in axes.iter().zip(&point) {
-                set_dotted(&mut table, &axis.path, value.clone())
-                    .map_err(|why| anyhow::anyhow!("{name}: axes.\"{}\": {why}", axis.path))?;
-            }
-            let text = toml::to_string(&table)?;
-            let origin = format!(
-                "{name} at {}",
-                axes.iter()
-                    .zip(&point)
-                    .map(|(a, v)| format!("{} = {}", a.path, value_text(v)))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-            let world = sim::SimConfig::from_toml_str(&text, &origin)?;
-            for s in &cfg.scenarios {
-                anyhow::ensure!(
-                    world.scenarios.contains_key(s),
-                    "{name}: unknown scenario '{s}' (known: {})",
-                    world
-                        .scenarios
-                        .keys()
-                        .cloned()
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
-            }
-            let key = short_hash(text.as_bytes());
-            worlds.insert(key.clone(), text);
-            point_worlds.push((point, key));
-        }
 
         let max_time = cfg
             .max_time_s
@@ -480,6 +509,12 @@ pub fn run_local(
     for (n, (plan, group)) in sweep.plans(out, cells, jobs).into_iter().enumerate() {
         let work = work_dir(out, &n.to_string());
         let filed = |i: usize, outcome: &RunOutcome| {
+            if let RunStatus::Failed(why) = &outcome.status
+                && crate::runner::interrupt::is_interruption(why)
+            {
+                // Not filed: an interrupted run runs again when the sweep resumes.
+                return;
+            }
             let cell = &group[i];
             match file_run(
                 out,
@@ -503,6 +538,13 @@ pub fn run_local(
         };
         crate::runner::execute(&plan, &work, &filed)?;
         std::fs::remove_dir_all(&work).with_context(|| work.display().to_string())?;
+        if crate::runner::interrupt::interrupted() {
+            return Err(crate::exit::Exit::interrupted(format!(
+                "interrupted: the runs filed so far are kept in {}; run the sweep again to resume",
+                out.display()
+            ))
+            .into());
+        }
         let failures = failures.lock().expect("no panics while holding the lock");
         if let Some(first) = failures.first() {
             anyhow::bail!("filing a run: {first}");

@@ -199,7 +199,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         std::env::current_exe()?.display()
     );
     if run_dir(out, &cell.key).exists() {
-        println!("{}: already done", cell.describe());
+        crate::out!("{}: already done", cell.describe());
         return Ok(());
     }
     let plan = Plan {
@@ -241,9 +241,9 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
     let _ = std::fs::remove_dir_all(&work);
     match outcomes.first().map(|r| &r.status) {
         Some(RunStatus::Failed(why)) => {
-            println!("{}: failed: {why}", cell.describe())
+            crate::out!("{}: failed: {why}", cell.describe())
         }
-        _ => println!("{}: ok", cell.describe()),
+        _ => crate::out!("{}: ok", cell.describe()),
     }
     Ok(())
 }

@@ -33,11 +33,14 @@ pub(crate) fn run_bench(dir: &Path, name: &str, toml: &str) -> (Output, PathBuf)
     let file = dir.join(format!("{name}.toml"));
     std::fs::write(&file, toml).expect("write bench file");
     let out = dir.join(format!("results-{name}"));
+    // Failed runs are what several tests look at (the table says why): the exit code 3
+    // that they give is tested in `conformance`.
     let o = vinebench(&[
         "bench",
         file.to_str().expect("utf-8"),
         "--out",
         out.to_str().expect("utf-8"),
+        "--allow-failures",
     ]);
     (o, out)
 }

@@ -7,6 +7,7 @@ mod common;
 
 mod bench;
 mod cli;
+mod conformance;
 mod dataset;
 mod lio_sam;
 mod orbslam2;

@@ -103,6 +103,15 @@ fn a_python_plugin_runs_like_a_c_one_and_its_faults_cost_its_own_run() {
             "{label}: expected one line naming {reason:?}, got {status:?}"
         );
     }
+    // The exception's whole traceback is in the run's log, down to the line that raised it.
+    let log = std::fs::read_to_string(out.join("s1/py-raise/worker.log")).expect("worker.log");
+    assert!(
+        log.contains("Traceback (most recent call last)")
+            && log.contains("bridge_fixtures.py")
+            && log.contains("in on_wheel_odometry")
+            && log.contains("raise ValueError"),
+        "{log}"
+    );
     // The same midpoint dead reckoning in C and in Python: the same figures.
     let (c_rmse, py_rmse) = (
         run("c-odometry")["rmse"].as_f64().expect("C rmse"),

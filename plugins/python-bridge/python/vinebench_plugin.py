@@ -1,4 +1,7 @@
-"""The contract of a SLAM system hosted by vinebench's Python bridge, as a runnable example.
+"""The contract of a SLAM system hosted by vinebench's Python bridge, as a base class and a
+runnable example. The contract is one for all three doors (Rust, C, Python):
+docs/plugin-contract.md is its table, with every message's fields as a Python class sees them
+(`imu.gyro`, `odom.linear`, `cloud.points["ring"]`, ...), the event kinds and the versions.
 
 Name the class in a bench file (see plugins/python-bridge/src/lib.rs for every key):
 
@@ -28,10 +31,15 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
 4. `finish()`: a dict with `trajectory` (a list of `(stamp_ns, map_from_base)`), optional
    `events` (dicts with `stamp_ns`, `kind` — "loop_closure_accepted",
    "loop_closure_rejected", "tracking_lost" or "tracking_recovered" — `detail`, and for a
-   loop closure `loop_stamps_ns` = [current, matched]) and optional `map` ((N, 3) points).
+   loop closure `loop_stamps_ns` = [current, matched] and optionally `loop_relative_pose`,
+   matched_from_current as [x, y, z, qx, qy, qz, qw] or a 4x4), optional `map` ((N, 3)
+   points) and optional `grid` ({"resolution": metres, "origin": (x, y, yaw), "cells": an
+   (rows, columns) array of -1 unknown or 0..100 occupancy, row 0 at the origin}).
 
 Times are integer nanoseconds, lengths metres, the base frame x forward, z up. An exception
-fails the run with its `Type: message` line; print() goes to the run's log. The bridge can
+fails the run with its `Type: message` line, and its whole traceback goes to the run's
+`worker.log`; print() goes there too. Check a class with
+`vinebench check-plugin BENCH.toml` before submitting it. The bridge can
 tell when Python code keeps an array, not when a C extension keeps a raw pointer to one:
 an extension must copy what it keeps (ORB-SLAM3 does, into its frames' keypoints).
 """
@@ -41,7 +49,31 @@ import math
 import numpy as np
 
 
-class WheelOdometry:
+class SlamSystem:
+    """The base a hosted class may derive from (the bridge calls methods by name, so deriving
+    is optional): every method the bridge may call, with what it does when absent."""
+
+    #: The contract revision this class was written for (docs/plugin-contract.md).
+    API_REVISION = 2
+
+    @staticmethod
+    def requirements(params):
+        """The sensor kinds to stream for these parameters (required)."""
+        raise NotImplementedError
+
+    def __init__(self, params, rig):
+        pass
+
+    # on_imu(imu), on_wheel_odometry(odom), on_point_cloud(cloud), on_laser_scan(scan),
+    # on_rgbd(frame): define those of the sensors you ask for; each returns None or
+    # (stamp_ns, 4x4 map_from_base).
+
+    def finish(self):
+        """The final trajectory and the rest (required)."""
+        raise NotImplementedError
+
+
+class WheelOdometry(SlamSystem):
     """Dead reckoning from the wheel speeds (midpoint rule), the smallest useful system."""
 
     @staticmethod
@@ -53,6 +85,8 @@ class WheelOdometry:
         self.trajectory = []
 
     def on_wheel_odometry(self, odom):
+        if not (math.isfinite(odom.linear) and math.isfinite(odom.angular)):
+            raise ValueError(f"non-finite wheel speeds at {odom.stamp_ns} ns")
         if self.state is None:
             self.state = (odom.stamp_ns, 0.0, 0.0, 0.0)
         else:

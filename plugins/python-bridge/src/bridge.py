@@ -2,8 +2,13 @@
 
 The Rust half calls the functions below; they build the message objects a plugin class sees
 (numpy arrays over the host's own buffers, no copies) and turn what the class returns into
-plain tuples. Nothing here is part of a plugin author's API: see `vinebench_plugin.py` for
-that contract, in words.
+plain tuples. Nothing here is part of a plugin author's API: the contract is
+docs/plugin-contract.md (every message's fields as a Python class sees them), and
+`vinebench_plugin.py` is its runnable example.
+
+The layouts and names that the Rust side defines (the lidar point's fields and offsets, the
+event kinds, the contract's revision) are not typed here: `configure` receives them from the
+Rust half when the module is loaded, so there is one copy of each.
 """
 
 import importlib
@@ -21,23 +26,28 @@ except ImportError as e:  # pragma: no cover - the message is the point
         "messages over as numpy arrays)"
     ) from e
 
-# plugin_api::LidarPoint, #[repr(C)]: five f32 and a u16, padded to 24 bytes.
-POINT = np.dtype(
-    {
-        "names": ["x", "y", "z", "intensity", "time_s", "ring"],
-        "formats": ["<f4", "<f4", "<f4", "<f4", "<f4", "<u2"],
-        "offsets": [0, 4, 8, 12, 16, 20],
-        "itemsize": 24,
-    }
-)
+# Set by `configure` from the Rust half before any other call.
+POINT = None  # numpy dtype of plugin_api::LidarPoint
+SENSOR_KINDS = ()
+EVENT_KINDS = ()
+API_REVISION = 0
 
-SENSOR_KINDS = ("imu", "wheel_odometry", "lidar", "scan2d", "rgbd")
-EVENT_KINDS = (
-    "loop_closure_accepted",
-    "loop_closure_rejected",
-    "tracking_lost",
-    "tracking_recovered",
-)
+
+def configure(point_fields, point_size, sensor_kinds, event_kinds, api_revision):
+    """The Rust half's layouts and registries: `point_fields` is [(name, numpy format,
+    offset)] of plugin_api::LidarPoint (from `offset_of!`), `point_size` its size."""
+    global POINT, SENSOR_KINDS, EVENT_KINDS, API_REVISION
+    POINT = np.dtype(
+        {
+            "names": [f[0] for f in point_fields],
+            "formats": [f[1] for f in point_fields],
+            "offsets": [f[2] for f in point_fields],
+            "itemsize": point_size,
+        }
+    )
+    SENSOR_KINDS = tuple(sensor_kinds)
+    EVENT_KINDS = tuple(event_kinds)
+    API_REVISION = int(api_revision)
 
 
 class Imu:
@@ -198,14 +208,69 @@ def rgbd(obj, stamp_ns, sensor, width, height, rgb, depth, intrinsics):
     return _call(obj, "on_rgbd", m)
 
 
+def _relative_pose(value):
+    """A loop's `loop_relative_pose` as 7 floats (x, y, z, qx, qy, qz, qw), from a list of
+    7 numbers or a 4x4 / 3x4 transform; None stays None."""
+    if value is None:
+        return None
+    m = np.asarray(value, dtype=np.float64)
+    if m.shape == (7,):
+        return tuple(m.tolist())
+    if m.shape in ((4, 4), (3, 4)):
+        r = m[:3, :3]
+        # Shepperd's method: the quaternion of a rotation matrix, stable for every angle.
+        t = np.trace(r)
+        if t > 0:
+            w = np.sqrt(1.0 + t) * 2
+            q = ((r[2, 1] - r[1, 2]) / w, (r[0, 2] - r[2, 0]) / w, (r[1, 0] - r[0, 1]) / w, 0.25 * w)
+        elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+            w = np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
+            q = (0.25 * w, (r[0, 1] + r[1, 0]) / w, (r[0, 2] + r[2, 0]) / w, (r[2, 1] - r[1, 2]) / w)
+        elif r[1, 1] > r[2, 2]:
+            w = np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
+            q = ((r[0, 1] + r[1, 0]) / w, 0.25 * w, (r[1, 2] + r[2, 1]) / w, (r[0, 2] - r[2, 0]) / w)
+        else:
+            w = np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
+            q = ((r[0, 2] + r[2, 0]) / w, (r[1, 2] + r[2, 1]) / w, 0.25 * w, (r[1, 0] - r[0, 1]) / w)
+        return (float(m[0, 3]), float(m[1, 3]), float(m[2, 3])) + tuple(float(v) for v in q)
+    raise ValueError(
+        f"finish(): an event's loop_relative_pose is 7 numbers (x, y, z, qx, qy, qz, qw) "
+        f"or a 4x4 transform, got shape {m.shape}"
+    )
+
+
+def _grid(value):
+    """An occupancy grid dict as (resolution, (x, y, yaw), width, height, cells bytes)."""
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        raise TypeError(f"finish(): grid is a dict (resolution, origin, cells), got {type(value).__name__}")
+    unknown = set(value) - {"resolution", "origin", "cells"}
+    if unknown:
+        raise ValueError(f"finish(): unknown grid keys {sorted(unknown)}")
+    cells = np.asarray(value["cells"])
+    if cells.ndim != 2:
+        raise ValueError(f"finish(): grid cells are a 2D array (rows, columns), got shape {cells.shape}")
+    if cells.size and (cells.min() < -1 or cells.max() > 100):
+        raise ValueError("finish(): grid cells are -1 (unknown) or 0..100 (occupancy)")
+    origin = tuple(float(v) for v in value.get("origin", (0.0, 0.0, 0.0)))
+    if len(origin) != 3:
+        raise ValueError("finish(): grid origin is (x, y, yaw)")
+    height, width = cells.shape
+    data = np.ascontiguousarray(cells.astype(np.int8)).tobytes()
+    return (float(value["resolution"]), origin, int(width), int(height), data)
+
+
 def finish(obj):
-    """(trajectory, events, map) as plain tuples from the class's finish() dict."""
+    """(trajectory, events, map, grid) as plain tuples from the class's finish() dict."""
     out = obj.finish()
     if out is None:
         out = {}
     if not isinstance(out, dict):
-        raise TypeError(f"finish() returns a dict (trajectory, events, map), got {type(out).__name__}")
-    unknown = set(out) - {"trajectory", "events", "map"}
+        raise TypeError(
+            f"finish() returns a dict (trajectory, events, map, grid), got {type(out).__name__}"
+        )
+    unknown = set(out) - {"trajectory", "events", "map", "grid"}
     if unknown:
         raise ValueError(f"finish(): unknown keys {sorted(unknown)}")
     trajectory = []
@@ -218,11 +283,22 @@ def finish(obj):
         kind = e["kind"]
         if kind not in EVENT_KINDS:
             raise ValueError(f"finish(): unknown event kind {kind!r} (one of {', '.join(EVENT_KINDS)})")
+        unknown = set(e) - {"stamp_ns", "kind", "detail", "loop_stamps_ns", "loop_relative_pose"}
+        if unknown:
+            raise ValueError(f"finish(): unknown event keys {sorted(unknown)}")
         stamps = e.get("loop_stamps_ns")
         if stamps is not None:
             stamps = (int(stamps[0]), int(stamps[1]))
-        events.append((int(e["stamp_ns"]), kind, str(e.get("detail", "")), stamps))
+        relative = _relative_pose(e.get("loop_relative_pose"))
+        events.append((int(e["stamp_ns"]), kind, str(e.get("detail", "")), stamps, relative))
     points = out.get("map")
     if points is not None:
         points = np.ascontiguousarray(np.asarray(points, dtype="<f4").reshape(-1, 3)).tobytes()
-    return trajectory, events, points
+    return trajectory, events, points, _grid(out.get("grid"))
+
+
+def traceback_text(exc):
+    """The whole traceback of `exc`, as Python prints it."""
+    import traceback
+
+    return "".join(traceback.format_exception(exc))

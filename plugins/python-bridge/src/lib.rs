@@ -42,8 +42,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, Mode, PluginError, PointCloud, Pose, Requirements, RgbdFrame,
-    Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, export_plugin,
+    Event, EventKind, Imu, LaserScan, Mode, OccupancyGrid, PluginError, PointCloud, Pose,
+    Requirements, RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, export_plugin,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
@@ -151,15 +151,45 @@ fn prepare<'py>(
         }
         python_embed::prepend_path(py, path)?;
     }
-    let err = |e: PyErr| python_embed::error_line(py, &e);
+    let err = |e: PyErr| python_embed::logged_error_line(py, &e);
     let code = CString::new(BRIDGE_PY).map_err(|e| e.to_string())?;
     let shim = PyModule::from_code(py, &code, c"vinebench_bridge.py", c"vinebench_bridge")
         .map_err(err)?
         .into_any();
+    configure(&shim).map_err(err)?;
     let class = shim
         .call_method1("load_class", (&spec.module, &spec.class))
         .map_err(err)?;
     Ok((shim, class))
+}
+
+/// Hands the bridge module the layouts and registries the Rust side defines, so that
+/// `bridge.py` types none of them: the lidar point's numpy fields from `offset_of!`, the
+/// sensor and event kinds, the contract's revision.
+fn configure(shim: &Bound<'_, PyAny>) -> PyResult<()> {
+    use plugin_api::LidarPoint;
+    use std::mem::offset_of;
+    let fields = vec![
+        ("x", "<f4", offset_of!(LidarPoint, x)),
+        ("y", "<f4", offset_of!(LidarPoint, y)),
+        ("z", "<f4", offset_of!(LidarPoint, z)),
+        ("intensity", "<f4", offset_of!(LidarPoint, intensity)),
+        ("time_s", "<f4", offset_of!(LidarPoint, time_s)),
+        ("ring", "<u2", offset_of!(LidarPoint, ring)),
+    ];
+    let sensors: Vec<&str> = SensorKind::ALL.iter().map(|k| k.name()).collect();
+    let events: Vec<&str> = EventKind::ALL.iter().map(|k| k.name()).collect();
+    shim.call_method1(
+        "configure",
+        (
+            fields,
+            size_of::<LidarPoint>(),
+            sensors,
+            events,
+            plugin_api::ABI_REVISION,
+        ),
+    )?;
+    Ok(())
 }
 
 /// Runs `f` with the GIL, Python started and the hosted class loaded; errors name the
@@ -172,7 +202,7 @@ fn with_class<T>(
     python_embed::start().map_err(fail)?;
     Python::attach(|py| {
         let (shim, class) = prepare(py, spec).map_err(fail)?;
-        f(py, &shim, &class).map_err(|e| fail(python_embed::error_line(py, &e)))
+        f(py, &shim, &class).map_err(|e| fail(python_embed::logged_error_line(py, &e)))
     })
 }
 
@@ -345,7 +375,7 @@ impl PythonPlugin {
                 out.extract::<Option<(i64, [f64; 12])>>()
             })();
             let released = views.release(py, method);
-            let value = result.map_err(|e| fail(python_embed::error_line(py, &e)))?;
+            let value = result.map_err(|e| fail(python_embed::logged_error_line(py, &e)))?;
             released.map_err(fail)?;
             pose_from(value).map_err(|e| fail(format!("{method}: {e}")))
         })
@@ -484,60 +514,162 @@ impl SlamSystem for PythonPlugin {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
-        type Finished = (
-            Vec<Option<(i64, [f64; 12])>>,
-            Vec<(i64, String, String, Option<(i64, i64)>)>,
-            Option<Vec<u8>>,
-        );
         let fail = |e: String| PluginError(format!("{}: {e}", self.name));
-        let (trajectory, events, map): Finished = Python::attach(|py| {
+        let finished: Finished = Python::attach(|py| {
             let out = self
                 .shim
                 .bind(py)
                 .call_method1("finish", (self.system.bind(py),))?;
-            let (t, e, m): (_, _, Option<Bound<'_, PyBytes>>) = out.extract()?;
-            Ok::<_, PyErr>((t, e, m.map(|b| b.as_bytes().to_vec())))
-        })
-        .map_err(|e| Python::attach(|py| fail(python_embed::error_line(py, &e))))?;
-        let trajectory = trajectory
-            .into_iter()
-            .map(|p| {
-                pose_from(p).and_then(|p| p.ok_or_else(|| "a trajectory entry is None".to_owned()))
-            })
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| fail(format!("finish: {e}")))?;
-        let events = events
-            .into_iter()
-            .map(|(stamp, kind, detail, stamps)| {
-                // The kind's name as events cross both ABIs (serde's snake_case).
-                let kind: EventKind = toml::Value::String(kind.clone())
-                    .try_into()
-                    .map_err(|_| fail(format!("finish: unknown event kind {kind:?}")))?;
-                Ok(match stamps {
-                    Some((a, b)) if kind.is_loop_closure() => {
-                        Event::loop_closure(stamp, kind, [a, b], detail)
-                    }
-                    _ => Event::new(stamp, kind, detail),
+            let (t, e, m, g): (_, _, Option<Bound<'_, PyBytes>>, Option<Bound<'_, PyTuple>>) =
+                out.extract()?;
+            let grid = g
+                .map(|g| {
+                    let (resolution, origin, width, height, cells): (
+                        f64,
+                        (f64, f64, f64),
+                        u32,
+                        u32,
+                        Bound<'_, PyBytes>,
+                    ) = g.extract()?;
+                    Ok::<_, PyErr>((resolution, origin, width, height, cells.as_bytes().to_vec()))
                 })
-            })
-            .collect::<Result<_, PluginError>>()?;
-        let map = map.map(|bytes| {
-            bytes
-                .chunks_exact(12)
-                .map(|c| {
-                    std::array::from_fn(|i| {
-                        f32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().expect("4 bytes"))
-                    })
-                })
-                .collect()
-        });
-        Ok(SlamOutput {
-            trajectory,
-            map,
-            grid: None,
-            events,
+                .transpose()?;
+            Ok::<_, PyErr>((t, e, m.map(|b| b.as_bytes().to_vec()), grid))
         })
+        .map_err(|e| Python::attach(|py| fail(python_embed::logged_error_line(py, &e))))?;
+        output_from_python(finished).map_err(|e| fail(format!("finish: {e}")))
     }
+}
+
+/// A loop's relative pose as the bridge hands it over: 7 numbers.
+type Relative = Option<(f64, f64, f64, f64, f64, f64, f64)>;
+/// A grid as the bridge hands it over: resolution, origin, width, height, cells.
+type Grid = Option<(f64, (f64, f64, f64), u32, u32, Vec<u8>)>;
+/// What `bridge.py`'s `finish` returns, extracted: trajectory, events, map bytes, grid.
+type Finished = (
+    Vec<Option<(i64, [f64; 12])>>,
+    Vec<(i64, String, String, Option<(i64, i64)>, Relative)>,
+    Option<Vec<u8>>,
+    Grid,
+);
+
+/// The Python door's output in the host's types, checked: every pose a finite rotation,
+/// every event kind in the registry and every relative pose finite with a unit quaternion,
+/// a grid with a positive resolution, a finite origin and width x height cells.
+fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamOutput, String> {
+    let trajectory = trajectory
+        .into_iter()
+        .map(|p| {
+            pose_from(p).and_then(|p| p.ok_or_else(|| "a trajectory entry is None".to_owned()))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let events = events
+        .into_iter()
+        .map(|(stamp, kind, detail, stamps, relative)| {
+            let kind = EventKind::from_name(&kind).map_err(|e| e.0)?;
+            let mut event = match stamps {
+                Some((a, b)) if kind.is_loop_closure() => {
+                    Event::loop_closure(stamp, kind, [a, b], detail)
+                }
+                _ => Event::new(stamp, kind, detail),
+            };
+            if let Some((x, y, z, qx, qy, qz, qw)) = relative {
+                event.loop_relative_pose = Some([x, y, z, qx, qy, qz, qw]);
+                if event.relative_pose().is_none() {
+                    return Err(format!(
+                        "the event at {stamp} ns has a loop_relative_pose that is not finite with a unit quaternion"
+                    ));
+                }
+            }
+            Ok(event)
+        })
+        .collect::<Result<_, String>>()?;
+    let map = map.map(|bytes| {
+        bytes
+            .chunks_exact(12)
+            .map(|c| {
+                std::array::from_fn(|i| {
+                    f32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().expect("4 bytes"))
+                })
+            })
+            .collect()
+    });
+    let grid = grid
+        .map(|(resolution_m, (x, y, yaw), width, height, cells)| {
+            let valid = resolution_m.is_finite()
+                && resolution_m > 0.0
+                && [x, y, yaw].iter().all(|v| v.is_finite());
+            if !valid {
+                return Err(
+                    "the grid's resolution must be positive and its origin finite".to_owned(),
+                );
+            }
+            if cells.len() as u64 != u64::from(width) * u64::from(height) {
+                return Err(format!(
+                    "the grid is {width}x{height} with {} cells",
+                    cells.len()
+                ));
+            }
+            Ok(OccupancyGrid {
+                resolution_m,
+                origin: [x, y, yaw],
+                width,
+                height,
+                cells: cells.into_iter().map(|c| c as i8).collect(),
+            })
+        })
+        .transpose()?;
+    Ok(SlamOutput {
+        trajectory,
+        map,
+        grid,
+        events,
+    })
+}
+
+/// Drives the Python door's host side (what `bridge.py` hands back from a class's `finish`
+/// and its message methods) with arbitrary values (`fuzz/`); not part of the API.
+#[doc(hidden)]
+pub fn fuzz_python_output(data: &[u8]) {
+    let mut at = 0usize;
+    let mut byte = || {
+        let b = data.get(at).copied().unwrap_or(0);
+        at += 1;
+        b
+    };
+    let mut f64v = || {
+        let mut b = [0u8; 8];
+        for x in &mut b {
+            *x = byte();
+        }
+        f64::from_le_bytes(b)
+    };
+    let poses: Vec<Option<(i64, [f64; 12])>> = (0..f64v().to_bits() % 4)
+        .map(|k| (k != 3).then(|| (k as i64, std::array::from_fn(|_| f64v()))))
+        .collect();
+    for p in &poses {
+        let _ = pose_from(*p);
+    }
+    let kinds = ["loop_closure_accepted", "tracking_lost", "no_such_kind", ""];
+    let events = (0..f64v().to_bits() % 4)
+        .map(|k| {
+            let kind = kinds[(f64v().to_bits() % 4) as usize].to_owned();
+            let relative =
+                (k % 2 == 0).then(|| (f64v(), f64v(), f64v(), f64v(), f64v(), f64v(), f64v()));
+            (k as i64, kind, String::new(), Some((1, 0)), relative)
+        })
+        .collect();
+    let map = Some(
+        (0..(f64v().to_bits() % 40))
+            .map(|_| (f64v().to_bits() & 0xff) as u8)
+            .collect(),
+    );
+    let (w, h) = ((f64v().to_bits() % 5) as u32, (f64v().to_bits() % 5) as u32);
+    let cells = (0..(f64v().to_bits() % 30))
+        .map(|_| (f64v().to_bits() & 0xff) as u8)
+        .collect();
+    let grid = Some((f64v(), (f64v(), f64v(), f64v()), w, h, cells));
+    let _ = output_from_python((poses, events, map, grid));
 }
 
 export_plugin!(PythonPlugin);

@@ -95,6 +95,13 @@ pub fn error_line(py: Python<'_>, e: &PyErr) -> String {
     }
 }
 
+/// [`error_line`], after printing the exception's whole traceback to standard error (a run's
+/// `worker.log`), where its author looks for the line that raised it.
+pub fn logged_error_line(py: Python<'_>, e: &PyErr) -> String {
+    e.clone_ref(py).display(py);
+    error_line(py, e)
+}
+
 /// Extension modules in wheels are not linked against libpython: they expect the
 /// interpreter's symbols to be global already, as they are in the `python3` executable.
 /// Here libpython came in as a plugin library's dependency, whose symbols `dlopen` keeps

@@ -89,6 +89,11 @@ impl SlamSystem for WheelOdometryBaseline {
     }
 
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
+        // A non-finite reading is dropped, as a robot's filter drops it; the next one
+        // integrates over the gap.
+        if !imu.gyro_rps.iter().all(|v| v.is_finite()) {
+            return Ok(None);
+        }
         if let Some(last) = self.last_imu_ns {
             let dt = (imu.stamp_ns - last) as f64 * 1e-9;
             self.imu_yaw += (self.base_r_imu * Vector3::from(imu.gyro_rps)).z * dt;
@@ -98,6 +103,11 @@ impl SlamSystem for WheelOdometryBaseline {
     }
 
     fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
+        // Non-finite speeds are dropped (no pose with them); the next reading integrates over
+        // the gap.
+        if !(odom.linear_mps.is_finite() && odom.angular_rps.is_finite()) {
+            return Ok(None);
+        }
         if let Some(last) = self.last_odom_ns {
             let dt = (odom.stamp_ns - last) as f64 * 1e-9;
             let dyaw = match self.yaw_source {
