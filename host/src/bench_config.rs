@@ -138,7 +138,13 @@ pub struct BenchConfig {
 impl BenchConfig {
     pub fn from_file(path: &Path) -> anyhow::Result<Self> {
         let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
-        let mut cfg: BenchConfig = toml::from_str(&text).map_err(|e| {
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses the text of a bench file at `path`: relative paths in it are resolved against
+    /// its folder, and errors name it; nothing is read from disk.
+    pub fn from_toml(text: &str, path: &Path) -> anyhow::Result<Self> {
+        let mut cfg: BenchConfig = toml::from_str(text).map_err(|e| {
             let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
             let at = line.map(|l| format!(" (line {l})")).unwrap_or_default();
             anyhow::anyhow!("{}: {}{at}", path.display(), e.message())

@@ -2,7 +2,7 @@
 
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::Read as _;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use mcap::records::Record;
@@ -14,12 +14,19 @@ use super::topics::Topic;
 use super::wire::Assembler;
 use super::{DatasetError, EPOCH_NS};
 
+/// Largest MCAP record a recording may hold, bytes (chunks by their compressed and their
+/// uncompressed length). A recording's chunks are about 4 MiB (`mcap_file.rs`) plus at
+/// most one message, and its largest message is a camera frame's depth image (33 MB at
+/// 3840 x 2160): anything larger is a damaged file, refused before its length is allocated.
+const MAX_RECORD_BYTES: usize = 256 << 20;
+
 /// The messages of a recording made by [`super::Recorder`], exactly as the simulator made
 /// them and in the same order; topics of sensors outside the chosen set, `/tf_static` and
-/// topics it does not know are skipped. Streams the file (memory: one chunk).
-pub struct Replay {
+/// topics it does not know are skipped. Streams the file (memory: one chunk), or any other
+/// source of its bytes ([`Replay::from_reader`]).
+pub struct Replay<R = File> {
     path: PathBuf,
-    file: File,
+    source: R,
     reader: LinearReader,
     sensors: SensorSet,
     /// Channel id → its topic, or `None` for a topic that is skipped.
@@ -31,7 +38,7 @@ pub struct Replay {
     done: bool,
 }
 
-impl std::fmt::Debug for Replay {
+impl<R> std::fmt::Debug for Replay<R> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Replay")
             .field("path", &self.path)
@@ -43,19 +50,27 @@ impl std::fmt::Debug for Replay {
 impl Replay {
     pub fn open(path: &Path, sensors: SensorSet) -> Result<Self, DatasetError> {
         let file = File::open(path).map_err(DatasetError::io(path))?;
+        Ok(Replay::from_reader(path, file, sensors))
+    }
+}
+
+impl<R: Read> Replay<R> {
+    /// A recording's bytes read from `source`; `path` only names it in errors.
+    pub fn from_reader(path: &Path, source: R, sensors: SensorSet) -> Self {
         let options = LinearReaderOptions::default()
             .with_validate_chunk_crcs(true)
-            .with_validate_data_section_crc(true);
-        Ok(Self {
+            .with_validate_data_section_crc(true)
+            .with_record_length_limit(MAX_RECORD_BYTES);
+        Self {
             path: path.to_owned(),
-            file,
+            source,
             reader: LinearReader::new_with_options(options),
             sensors,
             channels: BTreeMap::new(),
             schemas: BTreeMap::new(),
             assembler: Assembler::default(),
             done: false,
-        })
+        }
     }
 
     fn add_channel(&mut self, channel: mcap::records::Channel) -> Result<(), DatasetError> {
@@ -88,7 +103,7 @@ impl Replay {
             let record = match event.map_err(DatasetError::mcap(&self.path))? {
                 LinearReadEvent::ReadRequest(need) => {
                     let read = self
-                        .file
+                        .source
                         .read(self.reader.insert(need))
                         .map_err(DatasetError::io(&self.path))?;
                     self.reader.notify_read(read);
@@ -132,7 +147,7 @@ impl Replay {
     }
 }
 
-impl Iterator for Replay {
+impl<R: Read> Iterator for Replay<R> {
     type Item = Result<Message, DatasetError>;
 
     fn next(&mut self) -> Option<Self::Item> {
