@@ -145,10 +145,16 @@ fn run_child(
     let log_path = logs.join(format!("{}.log", check.name()));
     let log = std::fs::File::create(&log_path).with_context(|| log_path.display().to_string())?;
     let mut command = Command::new(exe);
-    if let Some(dir) = &subject.base_dir {
-        command.env("VINEBENCH_BENCH_DIR", dir);
-    }
+    // In a folder of its own, as a run's worker is in its run folder: what a plugin writes
+    // to its working folder (ORB-SLAM3's settings files, say) is removed with the check's
+    // logs. Its relative paths stay relative to where they were given.
+    let base = match &subject.base_dir {
+        Some(dir) => dir.clone(),
+        None => std::env::current_dir().context("the current folder")?,
+    };
     command
+        .env("VINEBENCH_BENCH_DIR", base)
+        .current_dir(logs)
         .arg("worker")
         .arg("--check")
         .arg(check.name())
@@ -632,8 +638,9 @@ fn sensor_name(rig: &Rig, kind: SensorKind) -> String {
         .map_or_else(|| kind.name().to_owned(), |s| s.name.clone())
 }
 
-/// A plausible message of `kind` at `stamp_ns`, with `n` elements (points, ranges, pixels
-/// on a side), each value passed through `value` (to make some NaN).
+/// A plausible message of `kind` at `stamp_ns`, with `n` elements (points, ranges; a frame
+/// is the rig camera's size, or empty for `n = 0`), each value passed through `value` (to
+/// make some NaN).
 fn message(
     rig: &Rig,
     kind: SensorKind,
@@ -692,11 +699,14 @@ fn message(
             what,
         },
         SensorKind::Rgbd => {
-            let pinhole = rig
-                .first(SensorKind::Rgbd)
-                .and_then(|s| s.pinhole().ok())
-                .map_or([525.0, 525.0, 319.5, 239.5], |p| p.intrinsics());
-            let (w, h) = (n, n * 3 / 4);
+            // The rig's image size (a host never sends another), or 0 x 0 for `n = 0`.
+            let pinhole = rig.first(SensorKind::Rgbd).and_then(|s| s.pinhole().ok());
+            let intrinsics = pinhole.map_or([525.0, 525.0, 319.5, 239.5], |p| p.intrinsics());
+            let (w, h) = match (n, pinhole) {
+                (0, _) => (0, 0),
+                (_, Some(p)) => (p.width as usize, p.height as usize),
+                (_, None) => (640, 480),
+            };
             Input::Frame {
                 stamp_ns,
                 sensor,
@@ -704,7 +714,7 @@ fn message(
                 height: h as u32,
                 rgb: (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect(),
                 depth: (0..w * h).map(|i| value(i, 2.0) as f32).collect(),
-                intrinsics: pinhole,
+                intrinsics,
                 what,
             }
         }

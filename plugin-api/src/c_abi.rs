@@ -344,18 +344,40 @@ struct TypedRig {
     rig: RigC,
     _sensors: Vec<SensorC>,
     _params: Vec<Vec<ParamC>>,
-    _strings: Vec<CString>,
+    /// The strings, owned through raw pointers (`CString::into_raw`), so that moving this
+    /// value never invalidates the pointers the plugin reads (Miri's Stacked Borrows: a
+    /// `CString` moved after its `as_ptr` was taken invalidates it); freed on drop.
+    strings: Vec<*mut c_char>,
+}
+
+impl Drop for TypedRig {
+    fn drop(&mut self) {
+        for &p in &self.strings {
+            // SAFETY: each came from `CString::into_raw` and is freed once, here.
+            drop(unsafe { CString::from_raw(p) });
+        }
+    }
 }
 
 impl TypedRig {
     /// `Err` names what holds a NUL byte.
     fn new(rig: &Rig) -> Result<Self, String> {
-        let mut strings = Vec::new();
+        // Owned from the start, so that an error part-way frees what was made.
+        let mut typed = Self {
+            rig: RigC {
+                sensors: std::ptr::null(),
+                n_sensors: 0,
+            },
+            _sensors: Vec::new(),
+            _params: Vec::new(),
+            strings: Vec::new(),
+        };
+        let strings = &mut typed.strings;
         let mut keep = |s: &str, what: &str| -> Result<*const c_char, String> {
             let c = CString::new(s).map_err(|_| format!("rig's {what} {s:?}"))?;
-            let p = c.as_ptr();
-            strings.push(c);
-            Ok(p)
+            let p = c.into_raw();
+            strings.push(p);
+            Ok(p.cast_const())
         };
         let mut params = Vec::new();
         let mut sensors = Vec::with_capacity(rig.sensors.len());
@@ -387,15 +409,13 @@ impl TypedRig {
             params.push(intrinsics);
             params.push(noise);
         }
-        Ok(Self {
-            rig: RigC {
-                sensors: sensors.as_ptr(),
-                n_sensors: sensors.len(),
-            },
-            _sensors: sensors,
-            _params: params,
-            _strings: strings,
-        })
+        typed.rig = RigC {
+            sensors: sensors.as_ptr(),
+            n_sensors: sensors.len(),
+        };
+        typed._sensors = sensors;
+        typed._params = params;
+        Ok(typed)
     }
 }
 
@@ -796,6 +816,7 @@ mod tests {
     /// compilers themselves (`_Static_assert` / `static_assert` of `offsetof` and `sizeof`),
     /// and the header compiles as C11 and C++17 with every warning an error.
     #[test]
+    #[cfg_attr(miri, ignore = "runs the C compilers")]
     fn the_mirrors_have_the_header_s_layouts_in_c11_and_cpp17() {
         let checks = assertions();
         assert!(checks.matches("VB_ASSERT").count() > 80, "{checks}");
@@ -823,6 +844,93 @@ mod tests {
         let refused = compile("cc", &["-std=c11", "-x", "c"], "wrong.c", &wrong)
             .expect_err("a wrong offset does not compile");
         assert!(refused.contains("vb_rgbd_frame.rgb"), "{refused}");
+    }
+
+    /// The unsafe reads of the C door's host side, checked under Miri
+    /// (`MIRIFLAGS=-Zmiri-ignore-leaks cargo +nightly miri test -p vinebench-plugin-api c_abi`,
+    /// docs/fuzzing.md; the tables are leaked on purpose, one per library for the process's
+    /// life): a plugin's output is copied
+    /// out whole and right, NULL arrays with lengths are refused, the typed rig's pointers
+    /// read back as the rig, and arbitrary answers never read out of bounds.
+    #[test]
+    fn the_c_door_reads_what_a_plugin_hands_back_within_its_bounds() {
+        let poses = [
+            Pose {
+                stamp_ns: 5,
+                translation: [1.0, 2.0, 3.0],
+                rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            },
+            Pose {
+                stamp_ns: 6,
+                translation: [1.5, 2.0, 3.0],
+                rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            },
+        ];
+        let map = [0.5f32, 0.25, -1.0];
+        let cells = [0i8, 100, -1, 50];
+        let grid = GridC {
+            resolution_m: 0.1,
+            origin: [-1.0, -2.0, 0.0],
+            width: 2,
+            height: 2,
+            cells: cells.as_ptr(),
+        };
+        let events = c"[[events]]\nstamp_ns = 6\nkind = \"loop_closure_accepted\"\ndetail = \"c\"\nloop_stamps_ns = [6, 5]\n";
+        let mut o = OutputC {
+            trajectory: poses.as_ptr(),
+            n_trajectory: 2,
+            map_xyz: map.as_ptr(),
+            n_map_points: 1,
+            grid: &grid,
+            events_toml: events.as_ptr(),
+        };
+        // SAFETY: every pointer points to as many elements as its length says.
+        let out = unsafe { output_from_c(&o) }.expect("a valid output");
+        assert_eq!(out.trajectory, poses);
+        assert_eq!(out.map, Some(vec![[0.5, 0.25, -1.0]]));
+        let g = out.grid.expect("grid");
+        assert_eq!((g.width, g.height, g.cells.as_slice()), (2, 2, &cells[..]));
+        assert_eq!(out.events.len(), 1);
+        assert_eq!(out.events[0].loop_stamps_ns, Some([6, 5]));
+        o.trajectory = std::ptr::null();
+        // SAFETY: as above; the NULL is what is checked.
+        let refused = unsafe { output_from_c(&o) }.expect_err("NULL with a length");
+        assert!(refused.0.contains("trajectory is NULL"), "{refused}");
+
+        let rig = Rig {
+            sensors: vec![crate::SensorSpec {
+                name: "lidar".into(),
+                kind: crate::SensorKind::Lidar,
+                rate_hz: 10.0,
+                base_from_sensor_xyz: [0.1, 0.0, 1.5],
+                base_from_sensor_xyzw: [0.0, 0.0, 0.0, 1.0],
+                intrinsics: [("rings".to_owned(), 16.0)].into_iter().collect(),
+                noise: [("range_sigma_m".to_owned(), 0.03)].into_iter().collect(),
+            }],
+        };
+        let typed = TypedRig::new(&rig).expect("no NUL");
+        assert_eq!(typed.rig.n_sensors, 1);
+        // SAFETY: the typed rig's pointers point into `typed`, alive here.
+        let (name, kind, rings, sigma) = unsafe {
+            let s = &*typed.rig.sensors;
+            (
+                CStr::from_ptr(s.name).to_str().expect("utf-8"),
+                CStr::from_ptr(s.kind).to_str().expect("utf-8"),
+                (*s.intrinsics).value,
+                (*s.noise).value,
+            )
+        };
+        assert_eq!((name, kind, rings, sigma), ("lidar", "lidar", 16.0, 0.03));
+
+        for data in [
+            &b""[..],
+            &[0xff; 64][..],
+            &[1, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xf0, 0x7f][..],
+            b"\x1f\x02[[events]]\nkind = 1",
+        ] {
+            fuzzing::c_output(data);
+            fuzzing::c_answers(data);
+        }
     }
 
     /// A table of revision 1's size loads with its revision-2 fields read as absent, even
@@ -997,12 +1105,18 @@ pub mod fuzzing {
         let error = b.c_string(512);
         let requirements = b.c_string(2048);
         ANSWER.with(|a| *a.borrow_mut() = (code, pose, error, requirements));
-        // SAFETY: all-zero bytes are a valid Table (see copy_table).
-        let mut table: Table = unsafe { std::mem::zeroed() };
-        table.last_error = Some(last_error);
-        table.on_imu = Some(answer);
-        table.requirements_for = Some(requirements_for);
-        let table: &'static Table = Box::leak(Box::new(table));
+        thread_local! {
+            // One per thread, for the thread's life, as a loaded library's table is.
+            static TABLE: &'static Table = {
+                // SAFETY: all-zero bytes are a valid Table (see copy_table).
+                let mut table: Table = unsafe { std::mem::zeroed() };
+                table.last_error = Some(last_error);
+                table.on_imu = Some(answer);
+                table.requirements_for = Some(requirements_for);
+                Box::leak(Box::new(table))
+            };
+        }
+        let table: &'static Table = TABLE.with(|t| *t);
         let plugin = CPlugin { table };
         let _ = plugin.requirements_for("x = 1", &Requirements::default());
         let mut instance = CInstance {

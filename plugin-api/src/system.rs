@@ -218,6 +218,11 @@ pub struct SlamOutput {
 
 /// A SLAM system as a plugin author writes it.
 ///
+/// The same contract reaches C (`include/vinebench_plugin.h`) and Python (the bridge's
+/// `vinebench_plugin.SlamSystem`): `docs/plugin-contract.md` is its one table, with every
+/// message field as each language sees it, the event kinds, the version policy and what a
+/// door cannot have. `vinebench check-plugin` checks a plugin against it.
+///
 /// Lifecycle, in this order:
 /// 1. [`SlamSystem::requirements`] (or [`SlamSystem::requirements_for`] with the parameters)
 ///    — asked before anything else, to decide which sensors to simulate and stream;

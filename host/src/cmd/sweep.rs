@@ -42,6 +42,10 @@ pub struct SweepArgs {
     /// Seconds between two looks at the Slurm queue.
     #[arg(long, default_value_t = 10.0, hide = true)]
     pub poll_s: f64,
+    /// Exit 0 even when some runs failed (the aggregate says which and why); by default
+    /// the exit code is 3 then.
+    #[arg(long)]
+    pub allow_failures: bool,
 }
 
 /// `vinebench sweep-task TASKS.json --index I`: one array task (started by Slurm).
@@ -135,6 +139,13 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
              run the sweep again to run them",
             out.display()
         );
+    }
+    let failed = agg.failed();
+    if failed > 0 && !args.allow_failures {
+        return Err(crate::cmd::Exit::failures(format!(
+            "{failed} runs failed (the aggregate says why; --allow-failures to exit 0)"
+        ))
+        .into());
     }
     Ok(())
 }

@@ -80,6 +80,11 @@ impl Aggregate {
     pub fn missing(&self) -> usize {
         self.rows.iter().map(|r| r.n_missing).sum()
     }
+
+    /// Runs that failed, over all rows.
+    pub fn failed(&self) -> usize {
+        self.rows.iter().map(|r| r.n_failed).sum()
+    }
 }
 
 #[cfg(test)]

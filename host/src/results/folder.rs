@@ -220,4 +220,43 @@ mod tests {
         let err = Staging::begin(&foreign).expect_err("foreign").to_string();
         assert!(err.contains("thesis") && err.contains("not a vinebench results folder"));
     }
+
+    /// A resumable folder is taken up again by the same fingerprint, replaced under another,
+    /// kept when dropped, removed by `discard`, loses its partial marker when committed, and
+    /// a foreign folder in its place is refused.
+    #[test]
+    fn a_partial_folder_resumes_only_the_same_plan() {
+        let root = tempfile::tempdir().expect("temp dir");
+        let target = root.path().join("bench");
+        let partial = partial_path(&target);
+        assert_eq!(partial, root.path().join(".bench.partial"));
+        let (staging, resumed) = Staging::begin_resumable(&target, "plan-a").expect("begin");
+        assert!(!resumed);
+        std::fs::write(staging.dir().join("run"), "done").expect("write");
+        drop(staging);
+        assert!(partial.join("run").is_file(), "kept when dropped");
+        let (staging, resumed) = Staging::begin_resumable(&target, "plan-a").expect("again");
+        assert!(resumed);
+        assert!(staging.dir().join("run").is_file());
+        drop(staging);
+        let (staging, resumed) = Staging::begin_resumable(&target, "plan-b").expect("other");
+        assert!(!resumed);
+        assert!(
+            !staging.dir().join("run").exists(),
+            "another plan starts afresh"
+        );
+        staging.discard().expect("discard");
+        assert!(!partial.exists());
+        let (staging, _) = Staging::begin_resumable(&target, "plan-c").expect("begin");
+        std::fs::write(staging.dir().join("table.md"), "t").expect("write");
+        assert_eq!(staging.commit().expect("commit"), target);
+        assert!(target.join(MARKER).exists() && !target.join(PARTIAL).exists());
+        assert!(!partial.exists());
+        std::fs::create_dir(&partial).expect("mkdir");
+        std::fs::write(partial.join("mine.txt"), "x").expect("write");
+        let err = Staging::begin_resumable(&target, "plan-c")
+            .expect_err("foreign")
+            .to_string();
+        assert!(err.contains("not a vinebench partial folder"), "{err}");
+    }
 }

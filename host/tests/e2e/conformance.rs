@@ -462,3 +462,44 @@ fn broken_libraries_are_listed_with_their_reason() {
         "{out}"
     );
 }
+
+/// In a shared simulation, a run that ends well is reported as it ends, while a hung
+/// groupmate is still running: the line does not wait for the other's timeout.
+#[test]
+fn a_finished_run_is_reported_while_its_groupmate_hangs() {
+    use std::io::BufRead as _;
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let bench = format!(
+        "scenarios = [\"s1\"]\nmax_time_s = 5.0\njobs = 2\ntimeout_s = 30.0\n[[plugins]]\npath = \"{}\"\nlabel = \"odom\"\n[[plugins]]\npath = \"{}\"\nlabel = \"slow\"\n[plugins.params]\nfault = \"hang\"\nafter = 5\n",
+        plugin_lib("wheel_odometry").display(),
+        plugin_lib("fault_plugin").display()
+    );
+    let file = write(tmp.path(), "group.toml", &bench);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vinebench"))
+        .args([
+            "bench",
+            file.to_str().expect("utf-8"),
+            "--allow-failures",
+            "--out",
+        ])
+        .arg(tmp.path().join("group"))
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("starts");
+    let mut lines = std::io::BufReader::new(child.stdout.take().expect("piped")).lines();
+    let first = lines.next().expect("a line").expect("text");
+    assert!(first.starts_with("[1/2] s1/odom: ok"), "{first}");
+    assert!(
+        child.try_wait().expect("status").is_none(),
+        "the hung run is still going when the good one is reported"
+    );
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    assert!(child.wait().expect("ends").success());
+    assert!(
+        rest.iter()
+            .any(|l| l.starts_with("[2/2] s1/slow: failed: timed out")),
+        "{rest:?}"
+    );
+}
