@@ -32,6 +32,7 @@ mod associate;
 mod drift;
 mod error;
 mod io;
+mod joins;
 mod loops;
 pub mod plot;
 mod relation;
@@ -49,6 +50,7 @@ pub use error::{EvalError, Malformed};
 pub use io::kitti::{parse_kitti, read_kitti, write_kitti};
 pub use io::tum::{parse_tum, read_tum, write_tum};
 pub use io::{Format, read_trajectory};
+pub use joins::{EpisodeKind, JoinCriteria, JoinEpisode, JoinReport, wrong_joins};
 pub use loops::{
     CorrectionJudgement, LoopCounts, LoopCriteria, LoopJudgement, judge_correction, judge_loop,
 };
