@@ -108,9 +108,18 @@ pub(crate) fn point_cloud(data: &[u8], ready_ns: i64) -> Result<LidarScan, Datas
             time_s: f32_at(p, 20),
         })
         .collect();
+    // The sweep lasts from its stamp to when it became available.
+    let sweep_ns = ready_ns
+        .checked_sub(stamp_ns)
+        .filter(|&ns| ns >= 0)
+        .ok_or_else(|| {
+            DatasetError::decode(format!(
+                "cloud stamped {stamp_ns} ns but available at {ready_ns} ns: not a sweep"
+            ))
+        })?;
     Ok(LidarScan {
         stamp_ns,
-        sweep_ns: ready_ns - stamp_ns,
+        sweep_ns,
         points,
     })
 }
@@ -341,5 +350,24 @@ mod tests {
         // A depth image is not a colour image.
         let err = color_image(&encode::depth_image(&f)).unwrap_err();
         assert!(err.to_string().contains("32FC1"), "{err}");
+    }
+
+    /// fuzz/regressions/ros_messages/sweep-overflow.bin: a cloud stamped long before it
+    /// became available, whose sweep duration overflowed `i64`.
+    #[test]
+    fn a_cloud_available_before_its_stamp_or_absurdly_late_is_refused() {
+        let scan = LidarScan {
+            stamp_ns: -EPOCH_NS,
+            sweep_ns: 0,
+            points: Vec::new(),
+        };
+        let bytes = encode::point_cloud(&scan);
+        let err = point_cloud(&bytes, i64::MAX).expect_err("sweep overflows");
+        assert!(err.to_string().contains("not a sweep"), "{err}");
+        assert!(
+            point_cloud(&bytes, -EPOCH_NS - 1).is_err(),
+            "negative sweep"
+        );
+        assert_eq!(point_cloud(&bytes, -EPOCH_NS + 5).unwrap().sweep_ns, 5);
     }
 }

@@ -5,7 +5,7 @@ use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use mcap::records::Record;
+use mcap::records::{Record, op};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use sim::SensorSet;
 use sim::sensors::Message;
@@ -109,9 +109,20 @@ impl<R: Read> Replay<R> {
                     self.reader.notify_read(read);
                     continue;
                 }
-                LinearReadEvent::Record { opcode, data } => {
-                    mcap::parse_record(opcode, data).map_err(DatasetError::mcap(&self.path))?
-                }
+                LinearReadEvent::Record { opcode, data } => match opcode {
+                    op::SCHEMA | op::CHANNEL | op::MESSAGE | op::DATA_END => {
+                        if !strings_fit(opcode, data) {
+                            return Err(DatasetError::invalid(
+                                &self.path,
+                                format!("record {opcode:#04x}: a string runs past the record"),
+                            ));
+                        }
+                        mcap::parse_record(opcode, data).map_err(DatasetError::mcap(&self.path))?
+                    }
+                    // The header, footer, metadata, attachments, indexes and statistics:
+                    // nothing a replay uses, so not parsed.
+                    _ => continue,
+                },
             };
             match record {
                 Record::Schema { header, .. } => {
@@ -126,7 +137,19 @@ impl<R: Read> Replay<R> {
                         )
                     })?;
                     let Some(topic) = topic else { continue };
-                    let ready_ns = header.log_time as i64 - EPOCH_NS;
+                    let ready_ns = i64::try_from(header.log_time)
+                        .map(|t| t - EPOCH_NS)
+                        .map_err(|_| {
+                            DatasetError::invalid(
+                                &self.path,
+                                format!(
+                                    "{} message {}: log time {} ns is past any ROS time",
+                                    topic.name(),
+                                    header.sequence,
+                                    header.log_time
+                                ),
+                            )
+                        })?;
                     let decoded = self.assembler.push(topic, ready_ns, &data).map_err(|e| {
                         DatasetError::invalid(
                             &self.path,
@@ -158,6 +181,39 @@ impl<R: Read> Iterator for Replay<R> {
         self.done |= next.is_err();
         next.transpose()
     }
+}
+
+/// Whether every string of a schema or channel record (a `u32` length, then that many
+/// bytes) lies within the record. The mcap crate reserves a string's declared length before
+/// it reads the string, so a damaged length would allocate up to 4 GiB.
+fn strings_fit(opcode: u8, data: &[u8]) -> bool {
+    // The end of the string at `at`, if it fits.
+    let string = |at: usize| -> Option<usize> {
+        let len = u32::from_le_bytes(data.get(at..at.checked_add(4)?)?.try_into().ok()?);
+        at.checked_add(4 + len as usize)
+            .filter(|&end| end <= data.len())
+    };
+    let fits = || -> Option<()> {
+        match opcode {
+            // id, name, encoding (the schema's data the crate checks itself).
+            op::SCHEMA => {
+                string(2).and_then(string)?;
+            }
+            // id, schema id, topic, message encoding, then the metadata: its length in
+            // bytes, and key and value strings until that many are read.
+            op::CHANNEL => {
+                let map = string(4).and_then(string)?;
+                let map_end = string(map)?;
+                let mut at = map + 4;
+                while at < map_end {
+                    at = string(at).and_then(string)?;
+                }
+            }
+            _ => {}
+        }
+        Some(())
+    };
+    fits().is_some()
 }
 
 /// The messages of the recording at `path` for `sensors`, for feeding a plugin as the live

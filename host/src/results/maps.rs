@@ -57,10 +57,12 @@ fn parse_ply(bytes: &[u8]) -> anyhow::Result<Vec<[f32; 3]>> {
         format!("PLY header {header:?}: expected binary little-endian vertices of float x, y, z")
     })?;
     let body = &bytes[end..];
+    let need = count
+        .checked_mul(12)
+        .with_context(|| format!("{count} vertices: more bytes than any file holds"))?;
     anyhow::ensure!(
-        body.len() == 12 * count,
-        "{count} vertices need {} bytes after the header, found {}",
-        12 * count,
+        body.len() == need,
+        "{count} vertices need {need} bytes after the header, found {}",
         body.len()
     );
     Ok(body
@@ -136,5 +138,15 @@ mod tests {
             err.contains("map.ply") && err.contains("2 vertices need 24 bytes"),
             "{err}"
         );
+    }
+
+    /// fuzz/regressions/ply/vertex-count-overflow.ply: a vertex count whose byte size
+    /// overflowed `usize` (a panic in debug builds, a wrong size check in release ones).
+    #[test]
+    fn a_vertex_count_past_the_address_space_is_refused() {
+        let header = "ply\nformat binary_little_endian 1.0\nelement vertex 1537228672809129302\n\
+                      property float x\nproperty float y\nproperty float z\nend_header\n";
+        let err = format!("{:#}", parse_ply(header.as_bytes()).expect_err("too many"));
+        assert!(err.contains("1537228672809129302 vertices"), "{err}");
     }
 }

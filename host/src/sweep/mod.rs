@@ -182,8 +182,14 @@ pub struct Expansion {
     pub points: Vec<(Vec<toml::Value>, String)>,
 }
 
+/// Most worlds (points of the axes) a sweep may resolve: each is checked and kept as text.
+pub const MAX_WORLDS: usize = 1_000;
+/// Most cells (runs) a sweep may have: scenarios x plugins x points x seeds.
+pub const MAX_CELLS: usize = 100_000;
+
 /// Expands the axes and seeds of `cfg`, a sweep file called `name`, over the world whose
 /// TOML text is `base_world`; checks every resolved world and that it has the scenarios.
+/// A sweep beyond [`MAX_WORLDS`] or [`MAX_CELLS`] is refused before anything is expanded.
 pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result<Expansion> {
     let mut axes = Vec::new();
     for (path, values) in &cfg.axes {
@@ -213,6 +219,22 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
     anyhow::ensure!(
         seeds.iter().collect::<BTreeSet<_>>().len() == seeds.len(),
         "{name}: seeds: a seed is given twice"
+    );
+    let worlds = axes
+        .iter()
+        .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+        .filter(|&n| n <= MAX_WORLDS);
+    let Some(worlds) = worlds else {
+        anyhow::bail!("{name}: the axes cross into more than {MAX_WORLDS} worlds; split the sweep");
+    };
+    let cells = [cfg.scenarios.len(), cfg.plugins.len(), seeds.len()]
+        .into_iter()
+        .try_fold(worlds, usize::checked_mul)
+        .filter(|&n| n <= MAX_CELLS);
+    anyhow::ensure!(
+        cells.is_some(),
+        "{name}: scenarios x plugins x {worlds} worlds x seeds is more than {MAX_CELLS} runs; \
+         split the sweep"
     );
 
     let base: toml::Table = base_world
@@ -583,6 +605,32 @@ mod tests {
         assert!(after.fence.panels.is_empty());
         assert_eq!(after.vineyard, before.vineyard);
         assert_eq!(value_text(&toml::Value::Array(Vec::new())), "[]");
+    }
+
+    /// fuzz/regressions/sweep_toml/a-million-worlds.toml: six axes of ten values, a
+    /// million worlds, each resolved and checked before the sweep started (a fuzzer's
+    /// timeout); a sweep past the limits is now refused before it expands.
+    #[test]
+    fn a_sweep_too_large_is_refused_before_it_expands() {
+        let sweep = |axes: usize, values: usize, seeds: usize| {
+            let mut text = format!(
+                "scenarios = [\"s0\"]\nseeds = {:?}\n[axes]\n",
+                (0..seeds).collect::<Vec<_>>()
+            );
+            for a in 0..axes {
+                let list: Vec<f64> = (0..values).map(|v| 1.0 + v as f64).collect();
+                text += &format!("\"sensors.imu.axis{a}\" = {list:?}\n");
+            }
+            text += "[[plugins]]\nname = \"x\"\n";
+            let cfg = BenchConfig::from_toml(&text, Path::new("big.toml")).expect("bench file");
+            expand(&cfg, "big.toml", sim::DEFAULT_CONFIG_TOML)
+                .expect_err("too large")
+                .to_string()
+        };
+        let err = sweep(6, 10, 1);
+        assert!(err.contains("more than 1000 worlds"), "{err}");
+        let err = sweep(3, 10, 101);
+        assert!(err.contains("more than 100000 runs"), "{err}");
     }
 
     #[test]

@@ -43,7 +43,8 @@ pub fn parse_kitti(
         let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
         let deviation = (r.transpose() * r - Matrix3::identity()).norm();
         let det = r.determinant();
-        if deviation > ROTATION_TOLERANCE || det <= 0.0 {
+        // Written so that a NaN (from entries whose products overflow) fails the check.
+        if !(deviation <= ROTATION_TOLERANCE && det > 0.0) {
             return Err(EvalError::Malformed {
                 path: path.to_path_buf(),
                 line,
@@ -199,6 +200,20 @@ mod tests {
                 "expected {expected:?}, got {message:?}"
             );
         }
+    }
+
+    /// fuzz/regressions/kitti/overflowing-rotation.kitti: entries whose products overflow
+    /// make `RᵀR - I` NaN, which passed the rotation check as "not above the tolerance".
+    #[test]
+    fn a_block_whose_check_overflows_is_not_a_rotation() {
+        let text = "1e200 1e200 0 0 -1e200 1e200 0 0 0 0 1 0\n";
+        let message = parse_kitti(text, Path::new("p.txt"), None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.starts_with("p.txt:1: 3x3 block is not a rotation"),
+            "{message}"
+        );
     }
 
     #[test]

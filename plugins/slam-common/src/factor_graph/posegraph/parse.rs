@@ -200,9 +200,9 @@ fn detect(text: &str) -> Format {
 fn is_city(f: &[&str]) -> bool {
     f.len() != 11
         && f.len() >= 8
-        && f[4]
-            .parse::<usize>()
-            .is_ok_and(|k| k >= 1 && f.len() == 5 + 3 * k)
+        && f[4].parse::<usize>().is_ok_and(|k| {
+            k >= 1 && k.checked_mul(3).and_then(|n| n.checked_add(5)) == Some(f.len())
+        })
 }
 
 /// `(x, y, θ)` lifted: z = 0, yaw = θ.
@@ -430,8 +430,13 @@ impl<'a> Fields<'a> {
     fn quat_pose(&mut self) -> Result<Isometry3<f64>, PoseGraphError> {
         let [x, y, z, qx, qy, qz, qw] = self.nums::<7>("pose")?;
         let q = Quaternion::new(qw, qx, qy, qz);
-        if q.norm() < 1e-9 {
-            return Err(self.err(format!("{}: zero quaternion", self.tag)));
+        // Too large a quaternion overflows its norm: normalised, it would be all zeros.
+        if !(q.norm() >= 1e-9 && q.norm().is_finite()) {
+            return Err(self.err(format!(
+                "{}: quaternion of norm {}, not a rotation",
+                self.tag,
+                q.norm()
+            )));
         }
         Ok(Isometry3::from_parts(
             Translation3::new(x, y, z),
