@@ -460,6 +460,14 @@ fn check_in_process(
             };
             let edge = edge_input(check, &rig, &kinds, last);
             let count = edge.len();
+            if count == 0 {
+                return Ok(match check {
+                    Check::EmptyInput => {
+                        "nothing to feed: none of its sensors' messages has an empty form".into()
+                    }
+                    _ => "nothing to feed".into(),
+                });
+            }
             // Unlike a run, an error does not end the input here: every edge case is fed, and
             // each must be answered without a crash, a hang or a bad pose.
             let mut errors: Vec<String> = Vec::new();
