@@ -10,6 +10,8 @@
 //! - `ros_messages/`: the first messages of each recording, as the `ros_messages` target
 //!   reads them;
 //! - `ply/`: RUN_DIR's `map.ply`, its first points, written by `results::write_ply`;
+//! - `report_maps/`: RUN_DIR's map, its first points, with a small occupancy grid written by
+//!   `results::write_grid`, as the `report_maps` target splits them;
 //! - `events_json/`, `events_toml/`: events of every kind, written by `RunFolder` (as the
 //!   plugin sent them and as judged) and as a plugin's `[[events]]` TOML;
 //! - `run_json/`: a sweep's `cell.json`, filed by `sweep::file_run`;
@@ -94,7 +96,28 @@ fn map(run: &Path, out: &Path) -> Result<()> {
     vinebench::results::write_ply(&path, &points[..points.len().min(40)])?;
     write(out, "ply", "map.ply", &std::fs::read(&path)?)?;
     vinebench::results::write_ply(&path, &[])?;
-    write(out, "ply", "empty.ply", &std::fs::read(&path)?)
+    write(out, "ply", "empty.ply", &std::fs::read(&path)?)?;
+    // The report's maps: map.ply, NUL, grid.pgm, NUL, grid.yaml, as `results` writes them.
+    let grid = plugin_api::OccupancyGrid {
+        resolution_m: 0.25,
+        origin: [-1.0, -0.5, 0.0],
+        width: 6,
+        height: 4,
+        cells: (0..24).map(|i| [-1, 0, 10, 50, 70, 100][i % 6]).collect(),
+    };
+    let (pgm, yaml) = (
+        dir.path().join(files::GRID),
+        dir.path().join(files::GRID_YAML),
+    );
+    vinebench::results::write_grid(&pgm, &yaml, &grid)?;
+    let whole = vinebench::results::read_ply(&run.join(files::MAP))?;
+    vinebench::results::write_ply(&path, &whole[..whole.len().min(300)])?;
+    let mut maps = std::fs::read(&path)?;
+    maps.push(0);
+    maps.extend(std::fs::read(&pgm)?);
+    maps.push(0);
+    maps.extend(std::fs::read(&yaml)?);
+    write(out, "report_maps", "map-and-grid.bin", &maps)
 }
 
 fn events(out: &Path) -> Result<()> {

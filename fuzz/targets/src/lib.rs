@@ -21,9 +21,12 @@ use plugin_api::Event;
 use vinebench::dataset::{Assembler, Replay, Topic};
 use vinebench::results::{RunFolder, files};
 
+/// A target's body.
+pub type Target = fn(&[u8]);
+
 /// Every target: its name (the folder of its corpus and regressions, the fuzz binary) and
 /// its body.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Target)] = &[
     ("world_toml", world_toml),
     ("bench_toml", bench_toml),
     ("sweep_toml", sweep_toml),
@@ -38,6 +41,7 @@ pub const TARGETS: &[(&str, fn(&[u8]))] = &[
     ("run_json", run_json),
     ("ape_csv", ape_csv),
     ("ply", ply),
+    ("report_maps", report_maps),
 ];
 
 /// The name errors give the fuzzed file.
@@ -315,4 +319,55 @@ pub fn ape_csv(data: &[u8]) {
 pub fn ply(data: &[u8]) {
     let dir = folder_with(files::MAP, data);
     let _ = vinebench::results::read_ply(&dir.path().join(files::MAP));
+}
+
+/// A plugin's map and occupancy grid as a bench's report reads and draws them: the input
+/// split at its first two NUL bytes into `map.ply`, `grid.pgm` and `grid.yaml` (each left
+/// out when its part is missing) in the folder of one ok run, and the bench's page built
+/// (`report::html::bench_page`, which reads them through its map and grid charts).
+pub fn report_maps(data: &[u8]) {
+    use vinebench::report::RunRecord;
+    use vinebench::report::load::{BenchResults, LoadedRun, RunDetail};
+    let mut parts = data.splitn(3, |&b| b == 0);
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let run_dir = dir.path().join("s3").join("fuzz");
+    std::fs::create_dir_all(&run_dir).expect("the run's folder");
+    for file in [files::MAP, files::GRID, files::GRID_YAML] {
+        if let Some(part) = parts.next() {
+            std::fs::write(run_dir.join(file), part).expect("write the input");
+        }
+    }
+    let xy = vec![(0.0, 0.0), (1.0, 0.5), (2.0, 0.0)];
+    let errors = vec![0.1, 0.2, 0.1];
+    let record = RunRecord {
+        scenario: "s3".into(),
+        plugin: "fuzz".into(),
+        status: vinebench::results::RunStatus::Ok,
+        ape: eval::Statistics::from_errors(&errors).ok(),
+        realtime_factor: Some(1.0),
+        loops: Some(eval::LoopCounts::default()),
+        estimate_xy: xy.clone(),
+        max_time_s: None,
+    };
+    let detail = RunDetail {
+        alignment: "se3".into(),
+        groundtruth_xy: xy.clone(),
+        estimate_raw_xy: xy,
+        stamps_s: vec![0.0, 1.0, 2.0],
+        errors_m: errors,
+        loops: Vec::new(),
+    };
+    let results = BenchResults {
+        dir: dir.path().to_path_buf(),
+        scenarios: vec!["s3".into()],
+        plugins: vec!["fuzz".into()],
+        runs: vec![LoadedRun {
+            record,
+            dir: run_dir,
+            detail: Some(detail),
+            timing: None,
+            run_toml: None,
+        }],
+    };
+    let _ = vinebench::report::html::bench_page(&results, NAME);
 }

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use fuzz_targets::TARGETS;
+use fuzz_targets::{TARGETS, Target};
 
 fn fuzz_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -25,7 +25,7 @@ fn inputs(dir: &Path) -> Vec<PathBuf> {
 }
 
 /// Runs `target` on every input, naming the input of a panic.
-fn replay(name: &str, target: fn(&[u8]), files: &[PathBuf]) {
+fn replay(name: &str, target: Target, files: &[PathBuf]) {
     for file in files {
         let data = std::fs::read(file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
         let result = std::panic::catch_unwind(|| target(&data));

@@ -35,6 +35,9 @@ pub struct Replay<R = File> {
     schemas: BTreeMap<u16, String>,
     /// The messages of a ground truth or camera frame read so far.
     assembler: Assembler,
+    /// The records of the chunk being read, and where the next one starts.
+    chunk: Vec<u8>,
+    chunk_at: usize,
     done: bool,
 }
 
@@ -57,8 +60,9 @@ impl Replay {
 impl<R: Read> Replay<R> {
     /// A recording's bytes read from `source`; `path` only names it in errors.
     pub fn from_reader(path: &Path, source: R, sensors: SensorSet) -> Self {
+        // Chunks are read here, not by the crate (see `chunk_record`).
         let options = LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
+            .with_emit_chunks(true)
             .with_validate_data_section_crc(true)
             .with_record_length_limit(MAX_RECORD_BYTES);
         Self {
@@ -69,6 +73,8 @@ impl<R: Read> Replay<R> {
             channels: BTreeMap::new(),
             schemas: BTreeMap::new(),
             assembler: Assembler::default(),
+            chunk: Vec::new(),
+            chunk_at: 0,
             done: false,
         }
     }
@@ -97,10 +103,20 @@ impl<R: Read> Replay<R> {
 
     fn next_message(&mut self) -> Result<Option<Message>, DatasetError> {
         while !self.done {
+            // The records of the chunk being read, then the file's next record.
+            if self.chunk_at < self.chunk.len() {
+                let chunk = std::mem::take(&mut self.chunk);
+                let found = self.chunk_record(&chunk);
+                self.chunk = chunk;
+                match found? {
+                    Some(message) => return Ok(Some(message)),
+                    None => continue,
+                }
+            }
             let Some(event) = self.reader.next_event() else {
                 break;
             };
-            let record = match event.map_err(DatasetError::mcap(&self.path))? {
+            let (opcode, data) = match event.map_err(DatasetError::mcap(&self.path))? {
                 LinearReadEvent::ReadRequest(need) => {
                     let read = self
                         .source
@@ -109,63 +125,124 @@ impl<R: Read> Replay<R> {
                     self.reader.notify_read(read);
                     continue;
                 }
-                LinearReadEvent::Record { opcode, data } => match opcode {
-                    op::SCHEMA | op::CHANNEL | op::MESSAGE | op::DATA_END => {
-                        if !strings_fit(opcode, data) {
-                            return Err(DatasetError::invalid(
-                                &self.path,
-                                format!("record {opcode:#04x}: a string runs past the record"),
-                            ));
-                        }
-                        mcap::parse_record(opcode, data).map_err(DatasetError::mcap(&self.path))?
-                    }
-                    // The header, footer, metadata, attachments, indexes and statistics:
-                    // nothing a replay uses, so not parsed.
-                    _ => continue,
-                },
+                LinearReadEvent::Record { opcode, data } => (opcode, data),
             };
-            match record {
-                Record::Schema { header, .. } => {
-                    self.schemas.insert(header.id, header.name);
+            if opcode == op::CHUNK {
+                let bad = |why: String| DatasetError::invalid(&self.path, format!("chunk: {why}"));
+                if !strings_fit(opcode, data) {
+                    return Err(bad("its compression's name runs past it".into()));
                 }
-                Record::Channel(channel) => self.add_channel(channel)?,
-                Record::Message { header, data } => {
-                    let topic = *self.channels.get(&header.channel_id).ok_or_else(|| {
-                        DatasetError::invalid(
-                            &self.path,
-                            format!("a message on unknown channel {}", header.channel_id),
-                        )
-                    })?;
-                    let Some(topic) = topic else { continue };
-                    let ready_ns = i64::try_from(header.log_time)
-                        .map(|t| t - EPOCH_NS)
-                        .map_err(|_| {
-                            DatasetError::invalid(
-                                &self.path,
-                                format!(
-                                    "{} message {}: log time {} ns is past any ROS time",
-                                    topic.name(),
-                                    header.sequence,
-                                    header.log_time
-                                ),
-                            )
-                        })?;
-                    let decoded = self.assembler.push(topic, ready_ns, &data).map_err(|e| {
-                        DatasetError::invalid(
-                            &self.path,
-                            format!("{} message {}: {e}", topic.name(), header.sequence),
-                        )
-                    })?;
-                    if decoded.is_some() {
-                        return Ok(decoded);
-                    }
+                let Record::Chunk { header, data } =
+                    mcap::parse_record(opcode, data).map_err(DatasetError::mcap(&self.path))?
+                else {
+                    return Err(bad("not a chunk".into()));
+                };
+                if !header.compression.is_empty() {
+                    return Err(bad(format!(
+                        "compressed ({}); vinebench records none",
+                        header.compression
+                    )));
                 }
-                // The summary after the data section repeats schemas and channels only.
-                Record::DataEnd(_) => self.done = true,
-                _ => {}
+                if header.uncompressed_size != data.len() as u64 {
+                    return Err(bad(format!(
+                        "{} bytes of records, its header says {}",
+                        data.len(),
+                        header.uncompressed_size
+                    )));
+                }
+                let crc = crc32fast::hash(&data);
+                if header.uncompressed_crc != 0 && header.uncompressed_crc != crc {
+                    return Err(bad(format!(
+                        "CRC {crc:08x}, its header says {:08x}",
+                        header.uncompressed_crc
+                    )));
+                }
+                self.chunk.clear();
+                self.chunk.extend_from_slice(&data);
+                self.chunk_at = 0;
+                continue;
+            }
+            let data = data.to_vec();
+            if let Some(message) = self.record(opcode, &data)? {
+                return Ok(Some(message));
             }
         }
         self.done = true;
+        Ok(None)
+    }
+
+    /// The next record of the chunk being read: its records must tile it exactly (the mcap
+    /// crate's own chunk reading underflows on a record that runs past its chunk).
+    fn chunk_record(&mut self, chunk: &[u8]) -> Result<Option<Message>, DatasetError> {
+        let at = self.chunk_at;
+        let bad = || DatasetError::invalid(&self.path, "chunk: a record runs past its end");
+        let head = chunk.get(at..at + 9).ok_or_else(bad)?;
+        let opcode = head[0];
+        let len = u64::from_le_bytes(head[1..].try_into().expect("8 bytes"));
+        let end = usize::try_from(len)
+            .ok()
+            .and_then(|len| (at + 9).checked_add(len))
+            .filter(|&end| end <= chunk.len())
+            .ok_or_else(bad)?;
+        self.chunk_at = end;
+        self.record(opcode, &chunk[at + 9..end])
+    }
+
+    /// Takes one record (in a chunk or not); returns the message it completes.
+    fn record(&mut self, opcode: u8, data: &[u8]) -> Result<Option<Message>, DatasetError> {
+        let record = match opcode {
+            op::SCHEMA | op::CHANNEL | op::MESSAGE | op::DATA_END => {
+                if !strings_fit(opcode, data) {
+                    return Err(DatasetError::invalid(
+                        &self.path,
+                        format!("record {opcode:#04x}: a string runs past the record"),
+                    ));
+                }
+                mcap::parse_record(opcode, data).map_err(DatasetError::mcap(&self.path))?
+            }
+            // The header, footer, metadata, attachments, indexes and statistics: nothing a
+            // replay uses, so not parsed.
+            _ => return Ok(None),
+        };
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas.insert(header.id, header.name);
+            }
+            Record::Channel(channel) => self.add_channel(channel)?,
+            Record::Message { header, data } => {
+                let topic = *self.channels.get(&header.channel_id).ok_or_else(|| {
+                    DatasetError::invalid(
+                        &self.path,
+                        format!("a message on unknown channel {}", header.channel_id),
+                    )
+                })?;
+                let Some(topic) = topic else {
+                    return Ok(None);
+                };
+                let ready_ns = i64::try_from(header.log_time)
+                    .map(|t| t - EPOCH_NS)
+                    .map_err(|_| {
+                        DatasetError::invalid(
+                            &self.path,
+                            format!(
+                                "{} message {}: log time {} ns is past any ROS time",
+                                topic.name(),
+                                header.sequence,
+                                header.log_time
+                            ),
+                        )
+                    })?;
+                return self.assembler.push(topic, ready_ns, &data).map_err(|e| {
+                    DatasetError::invalid(
+                        &self.path,
+                        format!("{} message {}: {e}", topic.name(), header.sequence),
+                    )
+                });
+            }
+            // The summary after the data section repeats schemas and channels only.
+            Record::DataEnd(_) => self.done = true,
+            _ => {}
+        }
         Ok(None)
     }
 }
@@ -195,6 +272,10 @@ fn strings_fit(opcode: u8, data: &[u8]) -> bool {
     };
     let fits = || -> Option<()> {
         match opcode {
+            // Times, size and CRC, then the compression's name.
+            op::CHUNK => {
+                string(28)?;
+            }
             // id, name, encoding (the schema's data the crate checks itself).
             op::SCHEMA => {
                 string(2).and_then(string)?;
