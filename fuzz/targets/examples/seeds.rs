@@ -11,7 +11,7 @@
 //!   reads them;
 //! - `ply/`: RUN_DIR's `map.ply`, its first points, written by `results::write_ply`;
 //! - `report_maps/`: RUN_DIR's map, its first points, with a small occupancy grid written by
-//!   `results::write_grid`, as the `report_maps` target splits them;
+//!   `results::write_grid`, as the `report_maps` target reads them;
 //! - `events_json/`, `events_toml/`: events of every kind, written by `RunFolder` (as the
 //!   plugin sent them and as judged) and as a plugin's `[[events]]` TOML;
 //! - `run_json/`: a sweep's `cell.json`, filed by `sweep::file_run`;
@@ -97,7 +97,7 @@ fn map(run: &Path, out: &Path) -> Result<()> {
     write(out, "ply", "map.ply", &std::fs::read(&path)?)?;
     vinebench::results::write_ply(&path, &[])?;
     write(out, "ply", "empty.ply", &std::fs::read(&path)?)?;
-    // The report's maps: map.ply, NUL, grid.pgm, NUL, grid.yaml, as `results` writes them.
+    // The report's maps: map.ply, grid.pgm and grid.yaml, as `results` writes them.
     let grid = plugin_api::OccupancyGrid {
         resolution_m: 0.25,
         origin: [-1.0, -0.5, 0.0],
@@ -112,11 +112,11 @@ fn map(run: &Path, out: &Path) -> Result<()> {
     vinebench::results::write_grid(&pgm, &yaml, &grid)?;
     let whole = vinebench::results::read_ply(&run.join(files::MAP))?;
     vinebench::results::write_ply(&path, &whole[..whole.len().min(300)])?;
-    let mut maps = std::fs::read(&path)?;
-    maps.push(0);
-    maps.extend(std::fs::read(&pgm)?);
-    maps.push(0);
-    maps.extend(std::fs::read(&yaml)?);
+    let maps = fuzz_targets::encode_report_maps(
+        &std::fs::read(&path)?,
+        &std::fs::read(&pgm)?,
+        &std::fs::read(&yaml)?,
+    );
     write(out, "report_maps", "map-and-grid.bin", &maps)
 }
 

@@ -322,19 +322,25 @@ pub fn ply(data: &[u8]) {
 }
 
 /// A plugin's map and occupancy grid as a bench's report reads and draws them: the input
-/// split at its first two NUL bytes into `map.ply`, `grid.pgm` and `grid.yaml` (each left
-/// out when its part is missing) in the folder of one ok run, and the bench's page built
+/// split into `map.ply` and `grid.pgm` (each a little-endian `u32` length, then its bytes)
+/// and `grid.yaml` (the rest), each left out when its part is missing, in the folder of
+/// one ok run, and the bench's page built
 /// (`report::html::bench_page`, which reads them through its map and grid charts).
 pub fn report_maps(data: &[u8]) {
     use vinebench::report::RunRecord;
     use vinebench::report::load::{BenchResults, LoadedRun, RunDetail};
-    let mut parts = data.splitn(3, |&b| b == 0);
+    let mut data = data;
     let dir = tempfile::tempdir().expect("a temporary folder");
     let run_dir = dir.path().join("s3").join("fuzz");
     std::fs::create_dir_all(&run_dir).expect("the run's folder");
-    for file in [files::MAP, files::GRID, files::GRID_YAML] {
-        if let Some(part) = parts.next() {
-            std::fs::write(run_dir.join(file), part).expect("write the input");
+    let write = |file: &str, part: &[u8]| {
+        std::fs::write(run_dir.join(file), part).expect("write the input");
+    };
+    if let Some(ply) = take_part(&mut data) {
+        write(files::MAP, ply);
+        if let Some(pgm) = take_part(&mut data) {
+            write(files::GRID, pgm);
+            write(files::GRID_YAML, data);
         }
     }
     let xy = vec![(0.0, 0.0), (1.0, 0.5), (2.0, 0.0)];
@@ -370,4 +376,25 @@ pub fn report_maps(data: &[u8]) {
         }],
     };
     let _ = vinebench::report::html::bench_page(&results, NAME);
+}
+
+/// The next part of a [`report_maps`] input: a little-endian `u32` length, then that many
+/// bytes (fewer at the end); `None` when not even the length is left.
+fn take_part<'a>(data: &mut &'a [u8]) -> Option<&'a [u8]> {
+    let len = u32::from_le_bytes(data.get(..4)?.try_into().ok()?) as usize;
+    let rest = &data[4..];
+    let (part, next) = rest.split_at(len.min(rest.len()));
+    *data = next;
+    Some(part)
+}
+
+/// Encodes a map, a grid image and its YAML as [`report_maps`] reads them (for its seeds).
+pub fn encode_report_maps(ply: &[u8], pgm: &[u8], yaml: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for part in [ply, pgm] {
+        out.extend_from_slice(&(part.len() as u32).to_le_bytes());
+        out.extend_from_slice(part);
+    }
+    out.extend_from_slice(yaml);
+    out
 }
