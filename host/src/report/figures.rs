@@ -220,7 +220,8 @@ fn read_pgm(path: &Path) -> anyhow::Result<(usize, usize, Vec<u8>)> {
         return Err(bad("16-bit pixels"));
     }
     let data = bytes.get(i + 1..).unwrap_or_default();
-    if data.len() != w * h {
+    // Checked: a header's size may overflow (fuzz/regressions/report_maps/).
+    if w.checked_mul(h) != Some(data.len()) {
         return Err(bad(&format!("{} pixel bytes for {w} x {h}", data.len())));
     }
     Ok((w, h, data.to_vec()))
@@ -268,6 +269,21 @@ mod tests {
         assert!(d.len() <= 100, "{}", d.len());
         assert_eq!((d[0], *d.last().unwrap()), (0, 1000));
         assert_eq!(decimate(&v[..10], 100).len(), 10);
+    }
+
+    /// A header whose size overflows is refused, not taken for the pixels it wraps to
+    /// (2^63 x 2 wraps to 0, the bytes this file has; the fuzzer's input is in
+    /// fuzz/regressions/report_maps/).
+    #[test]
+    fn a_pgm_whose_size_overflows_is_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("grid.pgm");
+        std::fs::write(&path, b"P5\n9223372036854775808 2\n255\n").expect("write");
+        let err = read_pgm(&path).expect_err("overflowing size").to_string();
+        assert!(
+            err.contains("0 pixel bytes for 9223372036854775808 x 2"),
+            "{err}"
+        );
     }
 
     #[test]
