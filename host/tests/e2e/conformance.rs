@@ -316,68 +316,11 @@ fn a_closed_output_loses_nothing() {
 }
 
 /// Ctrl-C during a bench: the run that finished is kept in the partial folder, the hung one
-/// is stopped, the exit code is 130 and the message says where; no results folder appears.
+/// is stopped and not filed, the exit code is 130 and the message says where; no results
+/// folder appears. The same command then resumes: the finished run is not run again (its
+/// files are the very bytes it left), the other one runs.
 #[test]
-fn ctrl_c_keeps_what_finished() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let fault = plugin_lib("fault_plugin");
-    let hang = format!(
-        "scenarios = [\"s1\"]\nmax_time_s = 5.0\nshare_simulation = false\njobs = 2\n[[plugins]]\npath = \"{}\"\nlabel = \"odom\"\n[[plugins]]\npath = \"{}\"\nlabel = \"slow\"\n[plugins.params]\nfault = \"hang\"\nafter = 5\n",
-        plugin_lib("wheel_odometry").display(),
-        fault.display()
-    );
-    let file = tmp.path().join("interrupt.toml");
-    std::fs::write(&file, &hang).expect("write");
-    let out = tmp.path().join("interrupt");
-    let partial = tmp.path().join(".interrupt.partial");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vinebench"))
-        .args(["bench", file.to_str().expect("utf-8"), "--out"])
-        .arg(&out)
-        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starts");
-    // Wait until the good run has filed its status, then interrupt.
-    let status_file = partial.join("s1/odom/status.txt");
-    let started = Instant::now();
-    while !status_file.is_file() {
-        assert!(
-            started.elapsed() < Duration::from_secs(60),
-            "the good run did not finish"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let signalled = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(signalled.success());
-    let mut stderr = String::new();
-    child
-        .stderr
-        .take()
-        .expect("piped")
-        .read_to_string(&mut stderr)
-        .expect("stderr");
-    let status = child.wait().expect("ends");
-    assert_eq!(status.code(), Some(130), "{stderr}");
-    assert!(
-        stderr.contains("1 of 2 runs finished and are kept in"),
-        "{stderr}"
-    );
-    assert!(!out.exists(), "no results folder yet");
-    assert!(status_file.is_file(), "the finished run is kept");
-    assert!(
-        !partial.join("s1/slow/status.txt").exists(),
-        "the interrupted run is not filed"
-    );
-}
-
-/// The same plan interrupted and run again is resumed: the finished run is not run again
-/// (its files are the very bytes it left), the other one runs.
-#[test]
-fn an_interrupted_bench_resumes_where_it_stopped() {
+fn ctrl_c_keeps_what_finished_and_the_same_command_resumes() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let fault = plugin_lib("fault_plugin");
     // The slow plugin hangs for at most its timeout: 8 s, enough to interrupt it.
@@ -408,12 +351,29 @@ fn an_interrupted_bench_resumes_where_it_stopped() {
         assert!(started.elapsed() < Duration::from_secs(60));
         std::thread::sleep(Duration::from_millis(50));
     }
-    Command::new("kill")
+    let signalled = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
         .expect("kill runs");
+    assert!(signalled.success());
+    let mut stderr = String::new();
+    child
+        .stderr
+        .take()
+        .expect("piped")
+        .read_to_string(&mut stderr)
+        .expect("stderr");
     let status = child.wait().expect("ends");
-    assert_eq!(status.code(), Some(130));
+    assert_eq!(status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains("1 of 2 runs finished and are kept in"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "no results folder yet");
+    assert!(
+        !partial.join("s1/slow/status.txt").exists(),
+        "the interrupted run is not filed"
+    );
     let before = std::fs::read(partial.join("s1/odom/estimate.tum")).expect("kept");
     let mtime = std::fs::metadata(partial.join("s1/odom/estimate.tum"))
         .and_then(|m| m.modified())
