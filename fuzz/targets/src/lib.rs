@@ -42,7 +42,23 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("ape_csv", ape_csv),
     ("ply", ply),
     ("report_maps", report_maps),
+    ("c_door_output", c_door_output),
+    ("c_door_answers", c_door_answers),
 ];
+
+/// The C door's host side reading what a C plugin's `finish` hands back, built from the
+/// bytes: arrays with their lengths, NULLs with lengths, a grid, events TOML text
+/// (`plugin_api::__fuzzing::c_output`).
+pub fn c_door_output(data: &[u8]) {
+    plugin_api::__fuzzing::c_output(data);
+}
+
+/// The C door's host side turning a C plugin's answers into the host's: an arbitrary return
+/// code, pose and error text from a message callback, arbitrary (or NULL) requirements
+/// text (`plugin_api::__fuzzing::c_answers`).
+pub fn c_door_answers(data: &[u8]) {
+    plugin_api::__fuzzing::c_answers(data);
+}
 
 /// The name errors give the fuzzed file.
 const NAME: &str = "fuzz-input";
