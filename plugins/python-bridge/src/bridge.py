@@ -209,30 +209,16 @@ def rgbd(obj, stamp_ns, sensor, width, height, rgb, depth, intrinsics):
 
 
 def _relative_pose(value):
-    """A loop's `loop_relative_pose` as 7 floats (x, y, z, qx, qy, qz, qw), from a list of
-    7 numbers or a 4x4 / 3x4 transform; None stays None."""
+    """A loop's `loop_relative_pose` as a flat list: 7 numbers (x, y, z, qx, qy, qz, qw) as
+    given, or the 12 numbers of a 4x4 / 3x4 transform's top three rows, which the Rust half
+    turns into a pose as it does every other (`pose_from`); None stays None."""
     if value is None:
         return None
     m = np.asarray(value, dtype=np.float64)
     if m.shape == (7,):
-        return tuple(m.tolist())
+        return m.tolist()
     if m.shape in ((4, 4), (3, 4)):
-        r = m[:3, :3]
-        # Shepperd's method: the quaternion of a rotation matrix, stable for every angle.
-        t = np.trace(r)
-        if t > 0:
-            w = np.sqrt(1.0 + t) * 2
-            q = ((r[2, 1] - r[1, 2]) / w, (r[0, 2] - r[2, 0]) / w, (r[1, 0] - r[0, 1]) / w, 0.25 * w)
-        elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
-            w = np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
-            q = (0.25 * w, (r[0, 1] + r[1, 0]) / w, (r[0, 2] + r[2, 0]) / w, (r[2, 1] - r[1, 2]) / w)
-        elif r[1, 1] > r[2, 2]:
-            w = np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
-            q = ((r[0, 1] + r[1, 0]) / w, 0.25 * w, (r[1, 2] + r[2, 1]) / w, (r[0, 2] - r[2, 0]) / w)
-        else:
-            w = np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
-            q = ((r[0, 2] + r[2, 0]) / w, (r[1, 2] + r[2, 1]) / w, 0.25 * w, (r[1, 0] - r[0, 1]) / w)
-        return (float(m[0, 3]), float(m[1, 3]), float(m[2, 3])) + tuple(float(v) for v in q)
+        return m[:3, :].ravel().tolist()
     raise ValueError(
         f"finish(): an event's loop_relative_pose is 7 numbers (x, y, z, qx, qy, qz, qw) "
         f"or a 4x4 transform, got shape {m.shape}"

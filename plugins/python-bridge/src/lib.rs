@@ -541,8 +541,9 @@ impl SlamSystem for PythonPlugin {
     }
 }
 
-/// A loop's relative pose as the bridge hands it over: 7 numbers.
-type Relative = Option<(f64, f64, f64, f64, f64, f64, f64)>;
+/// A loop's relative pose as the bridge hands it over: 7 numbers (translation, quaternion)
+/// or the 12 of a transform's top three rows.
+type Relative = Option<Vec<f64>>;
 /// A grid as the bridge hands it over: resolution, origin, width, height, cells.
 type Grid = Option<(f64, (f64, f64, f64), u32, u32, Vec<u8>)>;
 /// What `bridge.py`'s `finish` returns, extracted: trajectory, events, map bytes, grid.
@@ -573,8 +574,18 @@ fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamO
                 }
                 _ => Event::new(stamp, kind, detail),
             };
-            if let Some((x, y, z, qx, qy, qz, qw)) = relative {
-                event.loop_relative_pose = Some([x, y, z, qx, qy, qz, qw]);
+            if let Some(numbers) = relative {
+                event.loop_relative_pose = Some(match numbers.len() {
+                    7 => std::array::from_fn(|i| numbers[i]),
+                    12 => {
+                        let rows: [f64; 12] = std::array::from_fn(|i| numbers[i]);
+                        let pose = pose_from(Some((stamp, rows)))?.expect("given");
+                        let [x, y, z] = pose.translation;
+                        let [qx, qy, qz, qw] = pose.rotation_xyzw;
+                        [x, y, z, qx, qy, qz, qw]
+                    }
+                    n => return Err(format!("the event at {stamp} ns has a loop_relative_pose of {n} numbers")),
+                });
                 if event.relative_pose().is_none() {
                     return Err(format!(
                         "the event at {stamp} ns has a loop_relative_pose that is not finite with a unit quaternion"
@@ -654,8 +665,8 @@ pub fn fuzz_python_output(data: &[u8]) {
     let events = (0..f64v().to_bits() % 4)
         .map(|k| {
             let kind = kinds[(f64v().to_bits() % 4) as usize].to_owned();
-            let relative =
-                (k % 2 == 0).then(|| (f64v(), f64v(), f64v(), f64v(), f64v(), f64v(), f64v()));
+            let n = [7, 12, 3][(k % 3) as usize];
+            let relative = (k % 2 == 0).then(|| (0..n).map(|_| f64v()).collect());
             (k as i64, kind, String::new(), Some((1, 0)), relative)
         })
         .collect();
