@@ -156,6 +156,9 @@ fn events(out: &Path) -> Result<()> {
         .map(|e| JudgedEvent {
             event: e.clone(),
             true_loop: (e.kind == EventKind::LoopClosureAccepted).then_some(true),
+            judged_by: Some(vinebench::results::JudgedBy::Stamps),
+            wrong_join: None,
+            revisit: None,
             gt_distance_m: Some(0.42),
             gt_heading_deg: Some(17.2),
             relative_error_m: Some(0.03),

@@ -44,6 +44,7 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("report_maps", report_maps),
     ("c_door_output", c_door_output),
     ("c_door_answers", c_door_answers),
+    ("python_door_output", python_door_output),
 ];
 
 /// The C door's host side reading what a C plugin's `finish` hands back, built from the
@@ -58,6 +59,16 @@ pub fn c_door_output(data: &[u8]) {
 /// text (`plugin_api::__fuzzing::c_answers`).
 pub fn c_door_answers(data: &[u8]) {
     plugin_api::__fuzzing::c_answers(data);
+}
+
+/// The Python door's host side turning what `bridge.py` hands back from a class's
+/// `finish` (poses as 3x4 rows or absent, events with arbitrary kinds and relative poses of
+/// 7, 12 or a wrong number of values, a map's bytes, a grid with arbitrary sizes and cells)
+/// into the host's output, built from the bytes (`python_bridge::fuzz_python_output`). The
+/// values are the ones the bridge's Python half passes on unchecked; CPython itself is
+/// linked but not started.
+pub fn python_door_output(data: &[u8]) {
+    python_bridge::fuzz_python_output(data);
 }
 
 /// The name errors give the fuzzed file.
@@ -368,6 +379,9 @@ pub fn report_maps(data: &[u8]) {
         ape: eval::Statistics::from_errors(&errors).ok(),
         realtime_factor: Some(1.0),
         loops: Some(eval::LoopCounts::default()),
+        joins: Some(vinebench::results::JoinCounts::default()),
+        sim3_scale: Some(1.0),
+        drift_percent: Some(0.5),
         estimate_xy: xy.clone(),
         max_time_s: None,
     };

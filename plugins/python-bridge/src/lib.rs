@@ -665,8 +665,14 @@ pub fn fuzz_python_output(data: &[u8]) {
     let events = (0..f64v().to_bits() % 4)
         .map(|k| {
             let kind = kinds[(f64v().to_bits() % 4) as usize].to_owned();
-            let n = [7, 12, 3][(k % 3) as usize];
-            let relative = (k % 2 == 0).then(|| (0..n).map(|_| f64v()).collect());
+            // No relative pose, or 7 numbers, a 3x4 block's 12 or a wrong count.
+            let relative = match f64v().to_bits() % 4 {
+                0 => None,
+                1 => Some(7),
+                2 => Some(12),
+                _ => Some(3),
+            }
+            .map(|n| (0..n).map(|_| f64v()).collect());
             (k as i64, kind, String::new(), Some((1, 0)), relative)
         })
         .collect();
