@@ -118,6 +118,102 @@ impl JoinReport {
     }
 }
 
+/// How long before a map change reported without stamps (a merge, a global adjustment) the
+/// later stretch of the wrong join it made may end, seconds: 10 s is 5 m at the routes'
+/// 0.5 m/s. A system joins the place it is at when it detects the loop, and reports the
+/// change once its correction is done: ORB-SLAM2/3 query the current keyframe, a few
+/// keyframes (under a second at their rates) behind the tracker, and correct in a thread of
+/// their own; a paced run's queue adds a few seconds more. A join whose later stretch ends
+/// earlier than this before the event was there before it, and is some other event's (or
+/// nobody's: silent).
+pub const EXPLAIN_WINDOW_S: f64 = 10.0;
+/// How far after the event an episode's later stretch may begin and still be the event's,
+/// seconds: the event's stamp and the pose stamps come from different clocks of the system
+/// (a keyframe's stamp against the message that ended the correction).
+const EXPLAIN_LEAD_S: f64 = 1.0;
+
+impl JoinEpisode {
+    /// Whether this episode's later stretch reaches into the `window_s` before `stamp_s`
+    /// (up to [`EXPLAIN_LEAD_S`] after it): the episode a map change reported at `stamp_s`
+    /// made.
+    pub fn ends_shortly_before(&self, stamp_s: f64, window_s: f64) -> bool {
+        self.later_s[0] <= stamp_s + EXPLAIN_LEAD_S && self.later_s[1] >= stamp_s - window_s
+    }
+
+    /// Whether a loop reported with its two stamps (later, earlier; seconds) joins this
+    /// episode's two stretches, each within `window_s`.
+    pub fn joins_stamps(&self, stamps_s: [f64; 2], window_s: f64) -> bool {
+        let within = |t: f64, span: [f64; 2]| t >= span[0] - window_s && t <= span[1] + window_s;
+        let [a, b] = if stamps_s[0] >= stamps_s[1] {
+            stamps_s
+        } else {
+            [stamps_s[1], stamps_s[0]]
+        };
+        within(a, self.later_s) && within(b, self.earlier_s)
+    }
+}
+
+/// What the final map says of a map change reported at one stamp without the poses it joins:
+/// the wrong join and the kept revisit whose later stretches end shortly before it
+/// ([`EXPLAIN_WINDOW_S`]), as indices into [`JoinReport::wrong_joins`] and
+/// [`JoinReport::revisits`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct MapChangeVerdict {
+    pub wrong_join: Option<usize>,
+    pub revisit: Option<usize>,
+}
+
+impl MapChangeVerdict {
+    /// False when it made a wrong join; true when it kept a true revisit and made no wrong
+    /// join; `None` when the final map shows neither near it.
+    pub fn true_loop(&self) -> Option<bool> {
+        match (self.wrong_join, self.revisit) {
+            (Some(_), _) => Some(false),
+            (None, Some(_)) => Some(true),
+            (None, None) => None,
+        }
+    }
+}
+
+impl JoinReport {
+    /// The episodes a map change reported at `stamp_s` (seconds) without stamps made: of
+    /// several, the one whose later stretch ends nearest the event.
+    pub fn map_change(&self, stamp_s: f64) -> MapChangeVerdict {
+        let nearest = |episodes: &[JoinEpisode]| {
+            episodes
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.ends_shortly_before(stamp_s, EXPLAIN_WINDOW_S))
+                .min_by(|(_, a), (_, b)| {
+                    (a.later_s[1] - stamp_s)
+                        .abs()
+                        .total_cmp(&(b.later_s[1] - stamp_s).abs())
+                })
+                .map(|(i, _)| i)
+        };
+        MapChangeVerdict {
+            wrong_join: nearest(&self.wrong_joins),
+            revisit: nearest(&self.revisits),
+        }
+    }
+
+    /// The wrong joins no accepted loop explains: none of `stamped` (a loop's later and
+    /// earlier stamp, seconds) joins its two stretches and none of `stampless` (a map
+    /// change's stamp, seconds) comes shortly after it. Indices into
+    /// [`Self::wrong_joins`].
+    pub fn silent(&self, stamped: &[[f64; 2]], stampless: &[f64]) -> Vec<usize> {
+        (0..self.wrong_joins.len())
+            .filter(|&i| {
+                let e = &self.wrong_joins[i];
+                !stamped.iter().any(|&s| e.joins_stamps(s, EXPLAIN_WINDOW_S))
+                    && !stampless
+                        .iter()
+                        .any(|&t| e.ends_shortly_before(t, EXPLAIN_WINDOW_S))
+            })
+            .collect()
+    }
+}
+
 /// A thinned pose: time, estimate and true position, true travel so far.
 #[derive(Debug, Clone, Copy)]
 struct Sample {
@@ -433,6 +529,25 @@ mod tests {
         // The true trajectory joins nothing.
         let clean = wrong_joins(&stamps, &truth, &truth, &JoinCriteria::default());
         assert_eq!(clean, JoinReport::default());
+
+        // A map change reported just after the joined stretch ends made it; one reported
+        // long after, or before the stretch began, did not.
+        let end = e.later_s[1];
+        assert_eq!(r.map_change(end + 3.0).wrong_join, Some(0));
+        assert_eq!(r.map_change(end + 3.0).true_loop(), Some(false));
+        assert_eq!(r.map_change(end + 30.0), MapChangeVerdict::default());
+        assert_eq!(r.map_change(e.later_s[0] - 5.0).true_loop(), None);
+        // Unexplained, it is silent; a stampless change shortly after it, or a stamped loop
+        // joining its two stretches, explains it; a stamped loop elsewhere does not.
+        assert_eq!(r.silent(&[], &[]), [0]);
+        assert!(r.silent(&[], &[end + 3.0]).is_empty());
+        let (later, earlier) = (e.pair_s[0], e.pair_s[1]);
+        assert!(r.silent(&[[later, earlier]], &[]).is_empty());
+        assert!(
+            r.silent(&[[earlier, later]], &[]).is_empty(),
+            "either order"
+        );
+        assert_eq!(r.silent(&[[later, earlier - 60.0]], &[end + 30.0]), [0]);
     }
 
     #[test]
@@ -446,6 +561,9 @@ mod tests {
         );
         assert_eq!(r.revisits.len(), 1, "{r:#?}");
         assert_eq!(r.revisit_recall(), Some(1.0));
+        // A map change on the way back joined true places: true.
+        let back = r.revisits[0].later_s[1];
+        assert_eq!(r.map_change(back).true_loop(), Some(true));
         // The estimate shifts the return pass 3 m sideways: the revisit is missed, and the
         // shifted pass joins nothing that the truth keeps apart.
         let shifted: Vec<Vector3<f64>> = stamps

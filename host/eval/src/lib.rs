@@ -50,7 +50,10 @@ pub use error::{EvalError, Malformed};
 pub use io::kitti::{parse_kitti, read_kitti, write_kitti};
 pub use io::tum::{parse_tum, read_tum, write_tum};
 pub use io::{Format, read_trajectory};
-pub use joins::{EpisodeKind, JoinCriteria, JoinEpisode, JoinReport, wrong_joins};
+pub use joins::{
+    EXPLAIN_WINDOW_S, EpisodeKind, JoinCriteria, JoinEpisode, JoinReport, MapChangeVerdict,
+    wrong_joins,
+};
 pub use loops::{
     CorrectionJudgement, LoopCounts, LoopCriteria, LoopJudgement, judge_correction, judge_loop,
 };

@@ -171,6 +171,9 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
         ape: None,
         realtime_factor: None,
         loops: None,
+        joins: None,
+        sim3_scale: None,
+        drift_percent: None,
         estimate_xy: Vec::new(),
         max_time_s: run.max_time_s,
     };
@@ -217,6 +220,9 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
     // simulator's time is not the system's.
     record.realtime_factor = timing.as_ref().map(|t| t.realtime_factor_plugin);
     record.loops = Some(metrics.loops);
+    record.joins = metrics.joins;
+    record.sim3_scale = metrics.sim3_scale;
+    record.drift_percent = metrics.drift.map(|d| d.translation_percent);
     record.estimate_xy = aligned;
     let detail = RunDetail {
         alignment: metrics.alignment,

@@ -9,12 +9,17 @@ use std::fmt::Write as _;
 
 use super::table::Table;
 
-pub(super) const CAPTION: &str = "APE translation after alignment in metres; \
+pub(super) const CAPTION: &str = "APE translation after alignment in metres (max .. min); \
+    scale: of a Sim(3) alignment (1 for a metric system); drift %: translation drift over \
+    5-20 m segments, metres per 100 m; \
     RTF: the system's real-time factor (simulated seconds per second spent in its calls, \
     finish included; the simulator's time is not counted); \
     loops: loop closures accepted; false loops: of those, the ones ground truth shows \
-    false (a measured relative pose off by more than 0.5 m or 10°; without one, poses more \
-    than 1 m apart).";
+    false (a measured relative pose off by more than 0.5 m or 10°; with stamps and without \
+    one, poses more than 1 m apart; without stamps, a wrong join of the final map shortly \
+    before); wrong joins: stretches the final trajectory keeps within 1 m over 3 m or more \
+    that ground truth keeps more than 2.5 m apart, whatever the system reported; silent \
+    joins: of those, the ones no accepted loop explains.";
 
 pub(super) const PAPER_CAPTION: &str = "paper max .. paper std: the figures the paper \
     published for that system and scenario (Hroob et al. 2021, Table 2; `paper.csv`), not ours.";

@@ -54,6 +54,14 @@ pub struct RunRecord {
     pub realtime_factor: Option<f64>,
     /// The run's loop closures as judged against ground truth; `None` when failed.
     pub loops: Option<eval::LoopCounts>,
+    /// The final map's wrong joins and revisits; `None` when failed or evaluated before
+    /// they were counted.
+    pub joins: Option<crate::results::JoinCounts>,
+    /// The scale of a Sim(3) alignment of the final trajectory; `None` as `joins`.
+    pub sim3_scale: Option<f64>,
+    /// Translation drift over the route's 5–20 m segments, percent (metres per 100 m);
+    /// `None` as `joins`, or on a route shorter than 5 m.
+    pub drift_percent: Option<f64>,
     /// Top view (x, y) of the aligned final estimate, for the overlay plot; empty when
     /// failed.
     pub estimate_xy: Vec<(f64, f64)>,
@@ -76,11 +84,16 @@ pub struct ScenarioTruth {
 ///
 /// Files:
 /// - `table.md`, `table.csv`, `table.tex`: the paper's Table 2 layout. Rows `max`, `mean`,
-///   `median`, `rmse`, `std` (metres, 3 decimals), `RTF` (the system's real-time factor: simulated seconds per
+///   `median`, `rmse`, `std`, `min` (metres, 3 decimals), `scale` (of a Sim(3) alignment, 3
+///   decimals), `drift %` (metres per 100 m over 5–20 m segments, 2 decimals), `RTF` (the
+///   system's real-time factor: simulated seconds per
 ///   second spent in its calls, `finish` included, so the same whether or not its
-///   simulation was shared; 1 decimal), `loops` (loop closures accepted) and `false loops` (of those, the ones
-///   ground truth shows false: a measured relative pose off by more than 0.5 m or 10°, or
-///   without one, joining poses more than 1 m apart); one column per
+///   simulation was shared; 1 decimal), `loops` (loop closures accepted), `false loops` (of
+///   those, the ones ground truth shows false: a measured relative pose off by more than
+///   0.5 m or 10°, or without one, joining poses more than 1 m apart; without stamps, a
+///   wrong join of the final map shortly before), `wrong joins` (the final map's, whatever
+///   the system reported: `eval::wrong_joins`) and `silent joins` (of those, the ones no
+///   accepted loop explains); one column per
 ///   (scenario, plugin) run, all systems of the first
 ///   scenario, then of the next, under a two-level header (scenario, then system). A
 ///   failed run shows `failed` in its cells and its reason below the table (Markdown: a

@@ -6,13 +6,15 @@ use super::{RunRecord, RunStatus};
 /// A field of the APE statistics.
 type Field = fn(&eval::Statistics) -> f64;
 
-/// The statistic rows of the paper's Table 2, in its order: label and field.
-const STATISTICS: [(&str, Field); 5] = [
+/// The statistic rows of the paper's Table 2, in its order, and the minimum (a row of the
+/// paper's table source, commented out there): label and field.
+const STATISTICS: [(&str, Field); 6] = [
     ("max", |s| s.max),
     ("mean", |s| s.mean),
     ("median", |s| s.median),
     ("rmse", |s| s.rmse),
     ("std", |s| s.std),
+    ("min", |s| s.min),
 ];
 /// Decimals of the statistic rows (metres: millimetre resolution, as in the paper).
 const STATISTIC_DECIMALS: usize = 3;
@@ -23,6 +25,16 @@ const RTF_DECIMALS: usize = 1;
 /// ground truth); counts, no decimals.
 const LOOPS_LABEL: &str = "loops";
 const FALSE_LOOPS_LABEL: &str = "false loops";
+/// Label of the final map's wrong joins (`eval::wrong_joins`: whatever the system
+/// reported), and of those no accepted loop explains; counts.
+const WRONG_JOINS_LABEL: &str = "wrong joins";
+const SILENT_JOINS_LABEL: &str = "silent joins";
+/// Label and decimals of the Sim(3) scale row and the drift row (percent of the distance
+/// travelled over 5–20 m segments).
+const SCALE_LABEL: &str = "scale";
+const SCALE_DECIMALS: usize = 3;
+const DRIFT_LABEL: &str = "drift %";
+const DRIFT_DECIMALS: usize = 2;
 /// Labels of the reference's rows, in [`super::reference::STATISTICS`] order (the paper
 /// prints centimetres: two decimals).
 const PAPER_LABELS: [&str; 5] = [
@@ -178,7 +190,8 @@ impl<'a> Table<'a> {
             .filter(move |c| c.run.scenario == scenario)
     }
 
-    /// The rows `max`, `mean`, `median`, `rmse`, `std`, `RTF`, `loops` and `false loops`.
+    /// The rows `max`, `mean`, `median`, `rmse`, `std`, `min`, `scale`, `drift %`, `RTF`,
+    /// `loops`, `false loops`, `wrong joins` and `silent joins`.
     pub(super) fn rows(&self) -> Vec<Row> {
         let cell = |column: &Column, value: Option<f64>| match (&column.failure, value) {
             (Some(_), _) => Cell::Failed,
@@ -197,6 +210,24 @@ impl<'a> Table<'a> {
                 decimals: STATISTIC_DECIMALS,
             })
             .collect();
+        rows.push(Row {
+            label: SCALE_LABEL,
+            cells: self
+                .columns
+                .iter()
+                .map(|c| cell(c, c.run.sim3_scale))
+                .collect(),
+            decimals: SCALE_DECIMALS,
+        });
+        rows.push(Row {
+            label: DRIFT_LABEL,
+            cells: self
+                .columns
+                .iter()
+                .map(|c| cell(c, c.run.drift_percent))
+                .collect(),
+            decimals: DRIFT_DECIMALS,
+        });
         rows.push(Row {
             label: RTF_LABEL,
             cells: self
@@ -218,6 +249,22 @@ impl<'a> Table<'a> {
                     .columns
                     .iter()
                     .map(|c| cell(c, c.run.loops.as_ref().map(|l| count(l) as f64)))
+                    .collect(),
+                decimals: 0,
+            });
+        }
+        type JoinCount = fn(&crate::results::JoinCounts) -> usize;
+        let joins: [(&'static str, JoinCount); 2] = [
+            (WRONG_JOINS_LABEL, |j| j.wrong_joins),
+            (SILENT_JOINS_LABEL, |j| j.silent),
+        ];
+        for (label, count) in joins {
+            rows.push(Row {
+                label,
+                cells: self
+                    .columns
+                    .iter()
+                    .map(|c| cell(c, c.run.joins.as_ref().map(|j| count(j) as f64)))
                     .collect(),
                 decimals: 0,
             });

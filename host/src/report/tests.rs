@@ -31,6 +31,13 @@ fn ok(scenario: &str, plugin: &str, base: f64, rtf: f64, dy: f64) -> RunRecord {
             rejected: 7,
             unjudged: 0,
         }),
+        joins: Some(crate::results::JoinCounts {
+            wrong_joins: base as usize + 1,
+            silent: base as usize,
+            ..Default::default()
+        }),
+        sim3_scale: Some(1.0 + base / 100.0),
+        drift_percent: Some(base / 2.0),
         estimate_xy: (0..=50).map(|i| (f64::from(i) * 0.5, dy)).collect(),
         max_time_s: None,
     }
@@ -58,6 +65,9 @@ fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
             ape: None,
             realtime_factor: None,
             loops: None,
+            joins: None,
+            sim3_scale: None,
+            drift_percent: None,
             estimate_xy: Vec::new(),
             max_time_s: None,
         },
@@ -209,12 +219,17 @@ fn csv_parses_back_to_the_numbers() {
             "median",
             "rmse",
             "std",
+            "min",
+            "scale",
+            "drift %",
             "RTF",
             "loops",
             "false loops",
+            "wrong joins",
+            "silent joins",
             "status"
         ],
-        "expected one row per statistic, RTF, loops and status in\n{csv}"
+        "expected one row per statistic, scale, drift, RTF, loops, joins and status in\n{csv}"
     );
     let expected = [
         [1.9, 2.9, 3.9],
@@ -222,11 +237,17 @@ fn csv_parses_back_to_the_numbers() {
         [1.3, 2.3, 3.3],
         [1.4, 2.4, 3.4],
         [1.05, 2.05, 3.05],
+        [1.0, 2.0, 3.0],
+        [1.01, 1.02, 1.03],
+        [0.5, 1.0, 1.5],
         [12.3, 5.1, 7.3],
         [10.0, 20.0, 30.0],
         [1.0, 2.0, 3.0],
+        [2.0, 3.0, 4.0],
+        [1.0, 2.0, 3.0],
     ];
-    for (line, want) in lines[1..9].iter().zip(expected) {
+    assert_eq!(lines.len(), expected.len() + 2, "{csv}");
+    for (line, want) in lines[1..=expected.len()].iter().zip(expected) {
         let fields: Vec<&str> = line.split(',').collect();
         let values: Vec<f64> = fields[1..4]
             .iter()
@@ -242,7 +263,7 @@ fn csv_parses_back_to_the_numbers() {
         );
     }
     assert_eq!(
-        lines[9], "status,ok,ok,ok,\"failed: timed out after 600 s, \"\"no map\"\"\"",
+        lines[14], "status,ok,ok,ok,\"failed: timed out after 600 s, \"\"no map\"\"\"",
         "expected the status row with the reason quoted as RFC 4180 says"
     );
 }
@@ -260,7 +281,7 @@ fn latex_has_multicolumn_headers_and_escaped_labels() {
         "system & wheel-odometry & lio\\_sam & wheel-odometry & lio\\_sam \\\\",
         "\\midrule",
         "rmse & 1.400 & 2.400 & 3.400 & failed \\\\",
-        "\\midrule\nRTF & 12.3 & 5.1 & 7.3 & failed \\\\\nloops & 10 & 20 & 30 & failed \\\\\nfalse loops & 1 & 2 & 3 & failed \\\\\n\\bottomrule",
+        "\\midrule\nscale & 1.010 & 1.020 & 1.030 & failed \\\\\ndrift \\% & 0.50 & 1.00 & 1.50 & failed \\\\\nRTF & 12.3 & 5.1 & 7.3 & failed \\\\\nloops & 10 & 20 & 30 & failed \\\\\nfalse loops & 1 & 2 & 3 & failed \\\\\nwrong joins & 2 & 3 & 4 & failed \\\\\nsilent joins & 1 & 2 & 3 & failed \\\\\n\\bottomrule",
         "\\bottomrule",
         "\\end{tabular}",
         "Failed runs: s1/lio\\_sam: timed out after 600 s, \"no map\".",

@@ -9,7 +9,8 @@
 //!   `grid.pgm` + `grid.yaml` (if it made them), `events.json` (its events), `timing.json`
 //!   ([`Timing`]), and `worker.log` (its standard error);
 //! - by evaluation (`runner::evaluate`): `metrics.json` ([`Metrics`]), `events.json` again
-//!   with every accepted loop judged ([`JudgedEvent`]), `ape.csv` (the aligned estimate and
+//!   with every accepted loop judged ([`JudgedEvent`]), `joins.json` (the final map's
+//!   wrong joins and revisits, [`Joins`]), `ape.csv` (the aligned estimate and
 //!   its error at every associated pose, [`ApeSeries`]) and `results.mcap`.
 //!
 //! Nothing here runs a system or draws a page; layers above (`runner`, `sweep`, `report`)
@@ -26,7 +27,8 @@ pub use folder::{
 };
 pub use maps::{read_ply, write_grid, write_ply};
 pub use run::{
-    ApeSeries, JudgedEvent, Latency, Metrics, RunFolder, RunOutcome, RunStatus, Timing, write_json,
+    ApeSeries, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency, Metrics, RunFolder, RunOutcome,
+    RunStatus, Timing, Transform, write_json,
 };
 
 /// File names inside a run folder.
@@ -42,6 +44,8 @@ pub mod files {
     pub const EVENTS: &str = "events.json";
     pub const TIMING: &str = "timing.json";
     pub const METRICS: &str = "metrics.json";
+    /// The final map's wrong joins and revisits (`results::Joins`).
+    pub const JOINS: &str = "joins.json";
     /// The aligned estimate and its translation error per associated pose.
     pub const APE: &str = "ape.csv";
     /// Ground truth, aligned estimate, map and loops for Foxglove (`dataset::write_results`).

@@ -63,18 +63,122 @@ pub struct Metrics {
     /// Loop closures accepted (of those, how many were false and, if any, how many could
     /// not be judged) and rejected.
     pub loops: LoopCounts,
+    /// The transform of the APE's alignment (`ape`): ground truth's frame from the
+    /// estimate's. Absent in runs evaluated before it was stored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alignment_transform: Option<Transform>,
+    /// The scale of a Sim(3) alignment of the final trajectory, whatever `alignment` is: a
+    /// monocular system's scale error shows here (1 for a metric one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sim3_scale: Option<f64>,
+    /// KITTI-style drift of the final trajectory over all its 5, 10 and 20 m segments
+    /// (`eval::drift`): translation in percent (metres per 100 m), rotation in degrees per
+    /// 100 m. Absent when the route is shorter than 5 m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift: Option<eval::SegmentDrift>,
+    /// The final map's wrong joins and revisits (`joins.json` holds the episodes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joins: Option<JoinCounts>,
+}
+
+/// A similarity transform as `metrics.json` holds it: `p' = s R p + t`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    pub translation_m: [f64; 3],
+    /// The rotation as a unit quaternion, x, y, z, w.
+    pub rotation_xyzw: [f64; 4],
+    pub scale: f64,
+}
+
+impl From<&eval::Sim3> for Transform {
+    fn from(t: &eval::Sim3) -> Self {
+        let q = t.rotation.quaternion();
+        Self {
+            translation_m: t.translation.into(),
+            rotation_xyzw: [q.i, q.j, q.k, q.w],
+            scale: t.scale,
+        }
+    }
+}
+
+/// The final map's episodes counted (`eval::wrong_joins`, default criteria).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct JoinCounts {
+    /// Stretches of path the estimate keeps together that the truth keeps apart.
+    pub wrong_joins: usize,
+    /// Of those, the ones no accepted loop explains (`runner::loops`).
+    pub silent: usize,
+    /// Their travel together, metres.
+    pub wrong_join_travel_m: f64,
+    /// Two drifting paths crossing once: drift, not a join.
+    pub crossings: usize,
+    /// True revisits the estimate keeps together, and those it keeps apart.
+    pub revisits: usize,
+    pub missed_revisits: usize,
+    /// The kept share of the revisits' travel; absent without a revisit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub revisit_recall: Option<f64>,
+}
+
+/// `joins.json`: every episode of the final map (`eval::JoinReport`) and which wrong joins
+/// are silent (indices into `wrong_joins`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Joins {
+    #[serde(flatten)]
+    pub report: eval::JoinReport,
+    pub silent: Vec<usize>,
+}
+
+impl Joins {
+    pub fn counts(&self) -> JoinCounts {
+        let r = &self.report;
+        JoinCounts {
+            wrong_joins: r.wrong_joins.len(),
+            silent: self.silent.len(),
+            wrong_join_travel_m: r.wrong_joins.iter().map(|e| e.travel_m).sum(),
+            crossings: r.crossings.len(),
+            revisits: r.revisits.len(),
+            missed_revisits: r.missed_revisits.len(),
+            revisit_recall: r.revisit_recall(),
+        }
+    }
+}
+
+/// What an accepted loop's verdict rests on (`runner::loops`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JudgedBy {
+    /// The two stamps it carried: the ground-truth distance of the poses it joins.
+    Stamps,
+    /// The measured relative pose it carried, against ground truth's.
+    RelativePose,
+    /// Without stamps: the wrong join (false) or kept revisit (true) of the final map that
+    /// ends shortly before it (`joins.json`).
+    FinalMap,
+    /// Without stamps, and the final map showing nothing near it: the online error's jump.
+    OnlineError,
 }
 
 /// One entry of `events.json` once evaluated: the plugin's event as it sent it (`stamp_ns`,
 /// `kind`, `detail`, `loop_stamps_ns` when given) and, for an accepted loop that could be
-/// judged, `true_loop` with the ground-truth distance and heading difference it was judged
-/// on (`runner::loops`).
+/// judged, `true_loop` with what it was judged by and on: the ground-truth distance and
+/// heading difference of its stamps, its relative pose's error, the final map's episode
+/// (index into `joins.json`'s lists) and the online error around it (`runner::loops`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JudgedEvent {
     #[serde(flatten)]
     pub event: Event,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub true_loop: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub judged_by: Option<JudgedBy>,
+    /// A loop without stamps: the wrong join of the final map it made (index into
+    /// `joins.json`'s `wrong_joins`), if any,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wrong_join: Option<usize>,
+    /// and the kept true revisit (index into `revisits`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub revisit: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gt_distance_m: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -245,6 +349,16 @@ impl RunFolder {
 
     pub fn write_judged_events(&self, events: &[JudgedEvent]) -> anyhow::Result<()> {
         write_json(&self.path(files::EVENTS), &events)
+    }
+
+    /// `joins.json`, if the run was evaluated since it was written.
+    pub fn read_joins(&self) -> anyhow::Result<Option<Joins>> {
+        let path = self.path(files::JOINS);
+        path.exists().then(|| read_json(&path)).transpose()
+    }
+
+    pub fn write_joins(&self, joins: &Joins) -> anyhow::Result<()> {
+        write_json(&self.path(files::JOINS), joins)
     }
 
     pub fn read_ape(&self) -> anyhow::Result<ApeSeries> {

@@ -1,6 +1,8 @@
 //! Scores a finished run: APE (translation) of the final and of the online trajectory
-//! against ground truth, as evo computes it, and its loop closures judged against ground
-//! truth (see `loops.rs`); then writes the run's results.mcap
+//! against ground truth, as evo computes it, with the alignment's transform, the Sim(3)
+//! scale and the drift per 100 m; the final map's wrong joins and revisits
+//! (`eval::wrong_joins`, `joins.json`); and its loop closures judged against ground truth
+//! (see `loops.rs`); then writes the run's results.mcap
 //! ([`crate::dataset::write_results`]) with the estimate and map aligned by the transform
 //! of that APE.
 
@@ -9,7 +11,7 @@ use eval::{Alignment, ApeOptions, Sim3, Trajectory};
 use plugin_api::EventKind;
 
 use crate::dataset::{JudgedLoop, RunResults};
-use crate::results::{ApeSeries, JudgedEvent, Metrics, RunFolder, files};
+use crate::results::{ApeSeries, Joins, JudgedEvent, Metrics, RunFolder, Transform, files};
 
 /// Evaluates the run in `run`: writes its metrics.json, rewrites its events.json with the
 /// judgement of every accepted loop, and writes its ape.csv and results.mcap.
@@ -29,6 +31,29 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         }
         None => None,
     };
+    // The final map's joins, scale and drift, on the associated poses before alignment:
+    // distances in the estimate's own scale, the same under any rigid alignment.
+    let pairs = options.pairing.pair(&gt, &estimate)?;
+    let position = |poses: &[nalgebra::Isometry3<f64>]| -> Vec<nalgebra::Vector3<f64>> {
+        poses.iter().map(|p| p.translation.vector).collect()
+    };
+    let report = eval::wrong_joins(
+        &pairs.stamps,
+        &position(&pairs.estimate),
+        &position(&pairs.reference),
+        &eval::JoinCriteria::default(),
+    );
+    let sim3_scale = eval::align(&mut pairs.clone(), Alignment::Sim3, None)
+        .ok()
+        .map(|t| t.scale)
+        .filter(|s| s.is_finite());
+    let drift = eval::drift(
+        &pairs.reference,
+        &pairs.estimate,
+        &eval::DriftOptions::default(),
+    )
+    .ok()
+    .and_then(|d| d.last().copied());
     let events = run.read_events()?;
     let (loops, judged) = super::loops::judge(
         events,
@@ -38,13 +63,20 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
             trajectory,
             map_from_estimate: &final_.transform,
         }),
+        Some(&report),
     );
+    let joins = explained(report, &judged);
     run.write_judged_events(&judged)?;
+    run.write_joins(&joins)?;
     let metrics = Metrics {
         alignment: alignment.name().to_owned(),
         ape: final_.stats,
         online_ape: online.map(|(_, stats)| stats),
         loops,
+        alignment_transform: Some(Transform::from(&final_.transform)),
+        sim3_scale,
+        drift,
+        joins: Some(joins.counts()),
     };
     run.write_metrics(&metrics)?;
     run.write_ape(&ApeSeries {
@@ -65,6 +97,25 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         &final_.transform,
         &judged,
     )
+}
+
+/// The final map's episodes with the wrong joins no accepted loop of `judged` explains
+/// marked silent (`runner::loops`).
+fn explained(report: eval::JoinReport, judged: &[JudgedEvent]) -> Joins {
+    let accepted = judged
+        .iter()
+        .filter(|j| j.event.kind == EventKind::LoopClosureAccepted);
+    let stamped: Vec<[f64; 2]> = accepted
+        .clone()
+        .filter_map(|j| j.event.loop_stamps_ns)
+        .map(|s| s.map(|ns| ns as f64 * 1e-9))
+        .collect();
+    let stampless: Vec<f64> = accepted
+        .filter(|j| j.event.loop_stamps_ns.is_none())
+        .map(|j| j.event.stamp_ns as f64 * 1e-9)
+        .collect();
+    let silent = report.silent(&stamped, &stampless);
+    Joins { report, silent }
 }
 
 /// Writes `dir`'s results.mcap: the ground truth, the estimate and map.ply (if any) moved

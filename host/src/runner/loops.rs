@@ -13,16 +13,25 @@
 //! Every accepted loop is judged from the two stamps its event carries
 //! (`Event::loop_stamps_ns`). An accepted loop without stamps (a system that only says its
 //! map changed, as ORB-SLAM3's bindings do, or a plugin built before events carried them)
-//! is judged by the correction it made to the online estimate (`eval::judge_correction`:
-//! false when the position error grew by more than 0.5 m across the event), when the run
-//! has online poses on both sides of it; otherwise, and for stamps outside the ground truth,
-//! it is counted in `accepted` and in `unjudged`, never in `accepted_false`. Rejected loops
-//! are counted, not judged.
+//! is judged by the final map (`eval::wrong_joins`, `JoinReport::map_change`): false when a
+//! wrong join's later stretch ends within `eval::EXPLAIN_WINDOW_S` (10 s) before it, true
+//! when a kept true revisit does and no wrong join; when the final map shows neither there,
+//! by the correction it made to the online estimate (`eval::judge_correction`: false when
+//! the position error grew by more than 0.5 m across the event), when the run has online
+//! poses on both sides of it. That correction is reported beside the final map's verdict
+//! either way (a merge that moves only the final map leaves the online error as it was:
+//! ORB-SLAM3 on S3 of the paper's world, 8.0 m before and after). Otherwise, and for stamps
+//! outside the ground truth, the loop is counted in `accepted` and in `unjudged`, never in
+//! `accepted_false`. Rejected loops are counted, not judged.
+//!
+//! Wrong joins of the final map that no accepted loop explains (no stamped loop joins their
+//! two stretches, no stampless one comes shortly after) are *silent*: a system that reports
+//! nothing, or not this, still joined two places that the truth keeps apart.
 
-use eval::{LoopCounts, LoopCriteria, LoopJudgement, Trajectory};
+use eval::{JoinReport, LoopCounts, LoopCriteria, LoopJudgement, Trajectory};
 use plugin_api::{Event, EventKind};
 
-use crate::results::JudgedEvent;
+use crate::results::{JudgedBy, JudgedEvent};
 
 /// The online estimate and the alignment that moves it into ground truth's frame, for
 /// loops judged by their correction.
@@ -33,19 +42,22 @@ pub struct Online<'a> {
 }
 
 /// Judges every accepted loop of `events` against `groundtruth` by `criteria` (a loop
-/// without stamps by its correction of `online`, if given); returns the counts and the
-/// events with their judgements, in the plugin's order.
+/// without stamps by the final map's `joins`, if given, and by its correction of `online`,
+/// if given); returns the counts and the events with their judgements, in the plugin's
+/// order.
 pub fn judge(
     events: Vec<Event>,
     groundtruth: &Trajectory,
     criteria: &LoopCriteria,
     online: Option<Online<'_>>,
+    joins: Option<&JoinReport>,
 ) -> (LoopCounts, Vec<JudgedEvent>) {
     let mut counts = LoopCounts::default();
     let judged = events
         .into_iter()
         .map(|event| {
             let mut correction = None;
+            let mut map_change = None;
             let judgement: Option<LoopJudgement> = match event.kind {
                 EventKind::LoopClosureAccepted => {
                     let judgement = event.loop_stamps_ns.and_then(|stamps| {
@@ -57,21 +69,18 @@ pub fn judge(
                         )
                     });
                     if event.loop_stamps_ns.is_none() {
+                        let stamp_s = event.stamp_ns as f64 * 1e-9;
+                        map_change = joins.map(|j| j.map_change(stamp_s));
                         correction = online.and_then(|o| {
                             eval::judge_correction(
                                 groundtruth,
                                 o.trajectory,
                                 o.map_from_estimate,
-                                event.stamp_ns as f64 * 1e-9,
+                                stamp_s,
                                 criteria,
                             )
                         });
                     }
-                    counts.add_accepted_verdict(
-                        judgement
-                            .map(|j| j.true_loop)
-                            .or(correction.map(|c| c.true_loop)),
-                    );
                     judgement
                 }
                 EventKind::LoopClosureRejected => {
@@ -81,11 +90,30 @@ pub fn judge(
                 // Tracking events, and kinds appended to the registry later, are not judged.
                 _ => None,
             };
+            let by_map = map_change.and_then(|m| m.true_loop());
+            let (true_loop, judged_by) = if let Some(j) = judgement {
+                let by = if j.relative_error.is_some() {
+                    JudgedBy::RelativePose
+                } else {
+                    JudgedBy::Stamps
+                };
+                (Some(j.true_loop), Some(by))
+            } else if let Some(verdict) = by_map {
+                (Some(verdict), Some(JudgedBy::FinalMap))
+            } else if let Some(c) = correction {
+                (Some(c.true_loop), Some(JudgedBy::OnlineError))
+            } else {
+                (None, None)
+            };
+            if event.kind == EventKind::LoopClosureAccepted {
+                counts.add_accepted_verdict(true_loop);
+            }
             JudgedEvent {
                 event,
-                true_loop: judgement
-                    .map(|j| j.true_loop)
-                    .or(correction.map(|c| c.true_loop)),
+                true_loop,
+                judged_by,
+                wrong_join: map_change.and_then(|m| m.wrong_join),
+                revisit: map_change.and_then(|m| m.revisit),
                 error_before_m: correction.map(|c| c.error_before_m),
                 error_after_m: correction.map(|c| c.error_after_m),
                 gt_distance_m: judgement.map(|j| j.distance_m),
@@ -158,6 +186,7 @@ mod tests {
             &groundtruth(),
             &LoopCriteria::same_view(),
             None,
+            None,
         );
         assert_eq!(
             counts,
@@ -192,7 +221,7 @@ mod tests {
             events
         );
         // The host's default: the same place at any heading, so the reversed loop is true.
-        let (counts, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None);
+        let (counts, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None, None);
         assert_eq!(
             counts,
             LoopCounts {
@@ -218,7 +247,7 @@ mod tests {
             accepted(25 * S, 3 * S).with_relative_pose(&truth),
             accepted(25 * S, 5 * S).with_relative_pose(&Isometry3::translation(1.0, 0.3, 0.0)),
         ];
-        let (counts, judged) = judge(events, &gt, &LoopCriteria::default(), None);
+        let (counts, judged) = judge(events, &gt, &LoopCriteria::default(), None, None);
         assert_eq!(
             (counts.accepted, counts.accepted_false),
             (2, 1),
@@ -239,7 +268,7 @@ mod tests {
             accepted(25 * S, 5 * S),
             Event::new(27 * S, EventKind::LoopClosureAccepted, "old plugin"),
         ];
-        let (_, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None);
+        let (_, judged) = judge(events, &groundtruth(), &LoopCriteria::default(), None, None);
         let json = serde_json::to_value(&judged).expect("json");
         assert_eq!(json[0]["stamp_ns"], 25 * S);
         assert_eq!(json[0]["kind"], "loop_closure_accepted");

@@ -9,6 +9,7 @@ mod bench;
 mod cli;
 mod conformance;
 mod dataset;
+mod joins;
 mod lio_sam;
 mod orbslam2;
 mod python;

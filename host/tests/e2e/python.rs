@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use super::bench::{plugin_lib, run_bench, workspace_root};
 use crate::common::{json, text, vinebench};
 
-fn venv(name: &str) -> PathBuf {
+pub(crate) fn venv(name: &str) -> PathBuf {
     let venv = workspace_root().join("target").join(name);
     assert!(
         venv.join("bin/python").is_file(),
@@ -20,7 +20,7 @@ fn venv(name: &str) -> PathBuf {
 }
 
 /// A `[[plugins]]` entry hosting `module.class` through the bridge.
-fn python_entry(
+pub(crate) fn python_entry(
     label: &str,
     paths: &[PathBuf],
     venv: &Path,
@@ -41,7 +41,7 @@ fn python_entry(
 }
 
 /// The fixtures' module path: tests/python-plugin and the bridge's own `vinebench_plugin.py`.
-fn fixture_paths() -> Vec<PathBuf> {
+pub(crate) fn fixture_paths() -> Vec<PathBuf> {
     let root = workspace_root();
     vec![
         root.join("tests/python-plugin"),
