@@ -31,6 +31,7 @@ mod ape;
 mod associate;
 mod drift;
 mod error;
+mod intervals;
 mod io;
 mod joins;
 mod loops;
@@ -47,6 +48,7 @@ pub use associate::{
 };
 pub use drift::{DriftOptions, SegmentDrift, drift};
 pub use error::{EvalError, Malformed};
+pub use intervals::{Rate, mean_interval95, t975};
 pub use io::kitti::{parse_kitti, read_kitti, write_kitti};
 pub use io::tum::{parse_tum, read_tum, write_tum};
 pub use io::{Format, read_trajectory};

@@ -9,7 +9,9 @@
 //! ground truth shows false (a measured relative pose off by more than 0.5 m or 10°, or
 //! without one, joining poses more than 1 m apart), and
 //! `loops_unjudged`, present only when not zero, those that could not be judged (no
-//! stamps). A failed run has `status` only. A run whose route was cut (`--max-time`) also
+//! stamps). `wrong_joins` and `silent_joins` (the final map's wrong joins, and those no
+//! accepted loop explains), `sim3_scale` and `drift_percent` follow when the run was
+//! evaluated with them. A failed run has `status` only. A run whose route was cut (`--max-time`) also
 //! has `max_time_s`, the route limit in simulated seconds, so a short-route table is never
 //! mistaken for the paper's. A (scenario, plugin) pair without a run is absent.
 
@@ -35,6 +37,14 @@ enum Entry {
         loops_false: Option<usize>,
         #[serde(skip_serializing_if = "Option::is_none")]
         loops_unjudged: Option<usize>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        wrong_joins: Option<usize>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        silent_joins: Option<usize>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        sim3_scale: Option<f64>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        drift_percent: Option<f64>,
         #[serde(skip_serializing_if = "Option::is_none")]
         max_time_s: Option<f64>,
     },
@@ -67,6 +77,10 @@ impl Entry {
             loops_accepted: column.run.loops.map(|l| l.accepted),
             loops_false: column.run.loops.map(|l| l.accepted_false),
             loops_unjudged: column.run.loops.map(|l| l.unjudged).filter(|&n| n > 0),
+            wrong_joins: column.run.joins.map(|j| j.wrong_joins),
+            silent_joins: column.run.joins.map(|j| j.silent),
+            sim3_scale: column.run.sim3_scale.filter(|v| v.is_finite()),
+            drift_percent: column.run.drift_percent.filter(|v| v.is_finite()),
             max_time_s: column.run.max_time_s,
         }
     }

@@ -32,16 +32,18 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// A row's counts and summaries, in a CSV's column order.
-type RowValues = (Vec<usize>, Vec<Option<Summary>>);
+/// A row's counts, summaries and rates, in a CSV's column order.
+type RowValues = (Vec<usize>, Vec<Option<Summary>>, Vec<Option<eval::Rate>>);
 
 /// A CSV of one line per row: scenario, system and axis values, then `counts` (integers),
-/// then mean, std, min and max of each of `summaries`; `values` gives a row's counts and
-/// summaries in that order.
+/// then mean, std, min, max and the 95 % interval of the mean of each of `summaries`, then
+/// k, n, the rate and its 95 % Wilson interval of each of `rates`; `values` gives a row's
+/// counts, summaries and rates in that order.
 fn render_rows(
     agg: &Aggregate,
     counts: &[&str],
     summaries: &[&str],
+    rates: &[&str],
     values: &dyn Fn(&Row) -> RowValues,
 ) -> String {
     let line = |fields: Vec<String>| {
@@ -56,13 +58,18 @@ fn render_rows(
     head.extend(agg.axes.iter().map(|(p, _)| p.clone()));
     head.extend(counts.iter().map(|c| (*c).to_owned()));
     for m in summaries {
-        head.extend(["mean", "std", "min", "max"].map(|s| format!("{m}_{s}")));
+        head.extend(
+            ["mean", "std", "min", "max", "ci95_low", "ci95_high"].map(|s| format!("{m}_{s}")),
+        );
+    }
+    for m in rates {
+        head.extend(["k", "n", "rate", "ci95_low", "ci95_high"].map(|s| format!("{m}_{s}")));
     }
     let mut out = line(head);
     for row in &agg.rows {
         let mut fields = vec![row.scenario.clone(), row.system.clone()];
         fields.extend(row.axes.iter().map(|(_, v)| v.clone()));
-        let (n, stats) = values(row);
+        let (n, stats, rates) = values(row);
         fields.extend(n.iter().map(usize::to_string));
         for s in stats {
             fields.extend([
@@ -70,6 +77,17 @@ fn render_rows(
                 fixed(s.and_then(|s| s.std)),
                 fixed(s.map(|s| s.min)),
                 fixed(s.map(|s| s.max)),
+                fixed(s.and_then(|s| s.interval95).map(|i| i[0])),
+                fixed(s.and_then(|s| s.interval95).map(|i| i[1])),
+            ]);
+        }
+        for r in rates {
+            fields.extend([
+                r.map_or_else(String::new, |r| r.k.to_string()),
+                r.map_or_else(String::new, |r| r.n.to_string()),
+                fixed(r.map(|r| r.rate)),
+                fixed(r.map(|r| r.interval95[0])),
+                fixed(r.map(|r| r.interval95[1])),
             ]);
         }
         out += &line(fields);
@@ -82,11 +100,27 @@ pub fn render_csv(agg: &Aggregate) -> String {
     render_rows(
         agg,
         &["n_ok", "n_failed", "n_missing"],
-        &["ate_rmse_m", "loops_accepted", "loops_false"],
+        &[
+            "ate_rmse_m",
+            "loops_accepted",
+            "loops_false",
+            "wrong_joins",
+            "sim3_scale",
+            "drift_percent",
+        ],
+        &["false_join_runs"],
         &|row| {
             (
                 vec![row.n_ok, row.n_failed, row.n_missing],
-                vec![row.ate_rmse_m, row.loops_accepted, row.loops_false],
+                vec![
+                    row.ate_rmse_m,
+                    row.loops_accepted,
+                    row.loops_false,
+                    row.wrong_joins,
+                    row.sim3_scale,
+                    row.drift_percent,
+                ],
+                vec![row.false_join_runs],
             )
         },
     )
@@ -98,6 +132,7 @@ pub fn render_speed_csv(agg: &Aggregate) -> String {
         agg,
         &["n"],
         &["realtime_factor", "cpu_s", "peak_rss_mb"],
+        &[],
         &|row| {
             (
                 vec![row.n_ok],
@@ -106,15 +141,31 @@ pub fn render_speed_csv(agg: &Aggregate) -> String {
                     row.speed.cpu_s,
                     row.speed.peak_rss_mb,
                 ],
+                vec![],
             )
         },
     )
 }
 
-/// A row's cells after its axis values, as `sweep.md` and the sweep's page show them:
-/// runs ok / failed / missing, ATE RMSE mean ± std, min, max, loops accepted, false
-/// loops, RTF.
-pub fn row_cells(row: &Row) -> [String; 7] {
+/// The headers of [`row_cells`].
+pub const ROW_HEADERS: [&str; 10] = [
+    "ok / failed / missing",
+    "ATE RMSE (m)",
+    "95 % CI",
+    "min",
+    "max",
+    "loops accepted",
+    "false loops",
+    "wrong joins",
+    "runs with a false loop or join",
+    "RTF",
+];
+
+/// A row's cells after its axis values, as `sweep.md` and the sweep's page show them
+/// ([`ROW_HEADERS`]): runs ok / failed / missing, ATE RMSE mean ± std, its 95 % interval,
+/// min, max, loops accepted, false loops, wrong joins, the runs with a false loop or a
+/// wrong join (k of n, the rate's 95 % Wilson interval), RTF.
+pub fn row_cells(row: &Row) -> [String; 10] {
     let ate = |f: fn(&Summary) -> f64| {
         row.ate_rmse_m
             .map_or("–".into(), |s| format!("{:.3}", f(&s)))
@@ -122,10 +173,20 @@ pub fn row_cells(row: &Row) -> [String; 7] {
     [
         format!("{} / {} / {}", row.n_ok, row.n_failed, row.n_missing),
         pm(row.ate_rmse_m, 3),
+        row.ate_rmse_m
+            .and_then(|s| s.interval95)
+            .map_or("–".into(), |[lo, hi]| format!("[{lo:.3}, {hi:.3}]")),
         ate(|s| s.min),
         ate(|s| s.max),
         pm(row.loops_accepted, 1),
         pm(row.loops_false, 1),
+        pm(row.wrong_joins, 1),
+        row.false_join_runs.map_or("–".into(), |r| {
+            format!(
+                "{} of {} [{:.2}, {:.2}]",
+                r.k, r.n, r.interval95[0], r.interval95[1]
+            )
+        }),
         pm(row.speed.realtime_factor, 1),
     ]
 }
@@ -163,8 +224,11 @@ pub fn render_markdown(agg: &Aggregate) -> String {
     let mut md = String::from("# Sweep\n\n");
     let _ = writeln!(
         md,
-        "Seeds: {} ({} per cell). Mean ± sample standard deviation over the seeds; ATE is \
-         the RMSE of the translation error after alignment, in metres.\n",
+        "Seeds: {} ({} per cell). Mean ± sample standard deviation over the seeds, and the \
+         95 % t interval of the mean; ATE is the RMSE of the translation error after \
+         alignment, in metres. Runs with a false loop or join: of the ok runs, those with a \
+         false accepted loop or a wrong join of the final map, with the 95 % Wilson \
+         interval of the rate (ten runs tell only large differences apart).\n",
         agg.seeds
             .iter()
             .map(u64::to_string)
@@ -186,8 +250,10 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             head += &format!(" {path} |");
             rule += "---|";
         }
-        head += " ok / failed / missing | ATE RMSE (m) | min | max | loops accepted | false loops | RTF |";
-        rule += "---|---|---|---|---|---|---|";
+        for h in ROW_HEADERS {
+            head += &format!(" {h} |");
+            rule += "---|";
+        }
         let _ = writeln!(md, "{head}\n{rule}");
         for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
             let mut line = format!("| {} |", row.system);
@@ -359,14 +425,15 @@ pub fn read(out: &Path) -> anyhow::Result<Aggregate> {
         .with_context(|| format!("{}: not a sweep aggregate", path.display()))?;
     let speed = out.join("speed.csv");
     if let Ok(csv) = std::fs::read_to_string(&speed) {
-        // scenario, system, axes…, n, then mean/std/min/max of RTF, CPU s, peak RSS.
+        // scenario, system, axes…, n, then mean/std/min/max/ci95_low/ci95_high of RTF,
+        // CPU s, peak RSS.
         let first = 2 + agg.axes.len() + 1;
         for (row, line) in agg.rows.iter_mut().zip(csv.lines().skip(1)) {
             let fields: Vec<&str> = line.split(',').collect();
             let summary = |k: usize| -> Option<Summary> {
                 let at = |i: usize| {
                     fields
-                        .get(first + 4 * k + i)
+                        .get(first + 6 * k + i)
                         .and_then(|f| f.parse::<f64>().ok())
                 };
                 Some(Summary {
@@ -374,6 +441,7 @@ pub fn read(out: &Path) -> anyhow::Result<Aggregate> {
                     std: at(1),
                     min: at(2)?,
                     max: at(3)?,
+                    interval95: at(4).zip(at(5)).map(|(lo, hi)| [lo, hi]),
                 })
             };
             row.speed = Speed {

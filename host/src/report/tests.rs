@@ -305,15 +305,18 @@ fn json_has_the_design_shape() {
         "s0": {
             "wheel-odometry": {"status": "ok", "rmse": 1.4, "mean": 1.2, "median": 1.3,
                 "max": 1.9, "min": 1.0, "std": 1.05, "realtime_factor": 12.34,
-                "loops_accepted": 10, "loops_false": 1},
+                "loops_accepted": 10, "loops_false": 1, "wrong_joins": 2, "silent_joins": 1,
+                "sim3_scale": 1.01, "drift_percent": 0.5},
             "lio_sam": {"status": "ok", "rmse": 2.4, "mean": 2.2, "median": 2.3,
                 "max": 2.9, "min": 2.0, "std": 2.05, "realtime_factor": 5.06,
-                "loops_accepted": 20, "loops_false": 2, "loops_unjudged": 4},
+                "loops_accepted": 20, "loops_false": 2, "loops_unjudged": 4,
+                "wrong_joins": 3, "silent_joins": 2, "sim3_scale": 1.02, "drift_percent": 1.0},
         },
         "s1": {
             "wheel-odometry": {"status": "ok", "rmse": 3.4, "mean": 3.2, "median": 3.3,
                 "max": 3.9, "min": 3.0, "std": 3.05, "realtime_factor": 7.26,
-                "loops_accepted": 30, "loops_false": 3},
+                "loops_accepted": 30, "loops_false": 3, "wrong_joins": 4, "silent_joins": 3,
+                "sim3_scale": 1.03, "drift_percent": 1.5},
             "lio_sam": {"status": "failed: timed out after 600 s, \"no map\""},
         },
     });

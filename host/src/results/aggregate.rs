@@ -1,6 +1,8 @@
 //! A sweep's aggregate (`sweep.json`): per cell without the seed (scenario, system, point of
-//! the axes), the number of runs ok / failed / missing and mean ± std, min and max of ATE
-//! RMSE, accepted and false loops, and (kept apart, as they depend on the machine) real-time
+//! the axes), the number of runs ok / failed / missing and mean ± std, min, max and the 95 %
+//! interval of the mean of ATE RMSE, accepted and false loops, wrong joins, Sim(3) scale and
+//! drift; the share of runs with a false loop or wrong join with its Wilson interval; and
+//! (kept apart, as they depend on the machine) real-time
 //! factor, CPU time and peak memory. `sweep::aggregate::collect` makes it from the runs'
 //! folders; `report::sweep` writes and reads its files.
 //!
@@ -8,13 +10,16 @@
 
 use serde::{Deserialize, Serialize};
 
-/// mean ± std, min, max of some numbers.
+/// mean ± std, min, max of some numbers, and the 95 % t interval of the mean.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub mean: f64,
     pub std: Option<f64>,
     pub min: f64,
     pub max: f64,
+    /// `eval::mean_interval95`: absent for n < 2 (and in aggregates written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval95: Option<[f64; 2]>,
 }
 
 /// The summary of `xs` (in the given order, so sums are reproducible); `None` if empty.
@@ -31,6 +36,7 @@ pub fn summarize(xs: &[f64]) -> Option<Summary> {
         std,
         min: xs.iter().copied().fold(f64::INFINITY, f64::min),
         max: xs.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        interval95: eval::mean_interval95(xs),
     })
 }
 
@@ -48,6 +54,19 @@ pub struct Row {
     pub ate_rmse_m: Option<Summary>,
     pub loops_accepted: Option<Summary>,
     pub loops_false: Option<Summary>,
+    /// The final map's wrong joins per run (runs evaluated before they were counted left
+    /// out).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wrong_joins: Option<Summary>,
+    /// The ok runs with a false loop or a wrong join, of those judged for both: the rate
+    /// and its 95 % Wilson interval.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub false_join_runs: Option<eval::Rate>,
+    /// The Sim(3) scale and the drift (metres per 100 m) per run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sim3_scale: Option<Summary>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift_percent: Option<Summary>,
     /// `seed: reason` of each failed run.
     pub failures: Vec<String>,
     #[serde(skip)]
@@ -97,8 +116,10 @@ mod tests {
         assert_eq!(s.mean, 2.5);
         assert!((s.std.expect("n > 1") - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
         assert_eq!((s.min, s.max), (1.0, 4.0));
+        assert_eq!(s.interval95, eval::mean_interval95(&[1.0, 2.0, 3.0, 4.0]));
         let one = summarize(&[0.7]).expect("one number");
         assert_eq!((one.mean, one.std, one.min, one.max), (0.7, None, 0.7, 0.7));
+        assert_eq!(one.interval95, None);
         assert_eq!(summarize(&[]), None);
     }
 }

@@ -4,7 +4,8 @@
 //! ([`Staging`]), and a sweep's aggregate ([`aggregate`]).
 //!
 //! A run's folder, in the order its files are written:
-//! - by the worker: `run.toml` (everything that determined the run), `groundtruth.tum`,
+//! - by the worker: `run.toml` (everything that determined the run), `world.toml` (the
+//!   resolved simulator configuration, whole), `groundtruth.tum`,
 //!   `estimate.tum`, `online.tum` (if the system returned poses during the run), `map.ply`,
 //!   `grid.pgm` + `grid.yaml` (if it made them), `events.json` (its events), `timing.json`
 //!   ([`Timing`]), and `worker.log` (its standard error);
@@ -52,6 +53,10 @@ pub mod files {
     pub const RESULTS: &str = "results.mcap";
     pub const LOG: &str = "worker.log";
     pub const RUN: &str = "run.toml";
+    /// The simulator configuration the run was simulated in, resolved and whole
+    /// (`sim::SimConfig::to_toml_string`): `run.toml`'s `world` names its source file, which
+    /// may change or stay on another machine.
+    pub const WORLD: &str = "world.toml";
     /// How the run ended (`RunStatus::text`), written as it ends: what lets an interrupted
     /// bench resume without running it again.
     pub const STATUS: &str = "status.txt";

@@ -346,5 +346,9 @@ fn write_run_toml(
     p.insert("params".into(), toml::Value::Table(params));
     put("plugin", toml::Value::Table(p));
     let path = job.out_dir.join(files::RUN);
-    std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())
+    std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())?;
+    // The world as resolved, every key written out: `world` above names where it came from,
+    // this is what it was.
+    let path = job.out_dir.join(files::WORLD);
+    std::fs::write(&path, config.to_toml_string()).with_context(|| path.display().to_string())
 }

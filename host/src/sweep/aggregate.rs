@@ -27,6 +27,10 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
                     ate_rmse_m: None,
                     loops_accepted: None,
                     loops_false: None,
+                    wrong_joins: None,
+                    false_join_runs: None,
+                    sim3_scale: None,
+                    drift_percent: None,
                     failures: Vec::new(),
                     speed: Speed::default(),
                 },
@@ -39,6 +43,9 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
     for (mut row, cells) in rows {
         let (mut ate, mut accepted, mut false_, mut rtf, mut cpu, mut rss) =
             (vec![], vec![], vec![], vec![], vec![], vec![]);
+        let (mut joins, mut scale, mut drift) = (vec![], vec![], vec![]);
+        // Runs judged for joins, and of those the ones with a false loop or a wrong join.
+        let (mut judged, mut false_join) = (0, 0);
         for cell in cells {
             let dir = run_dir(out, &cell.key);
             if !dir.exists() {
@@ -58,6 +65,13 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
             ate.push(metrics.ape.rmse);
             accepted.push(metrics.loops.accepted as f64);
             false_.push(metrics.loops.accepted_false as f64);
+            if let Some(j) = metrics.joins {
+                joins.push(j.wrong_joins as f64);
+                judged += 1;
+                false_join += usize::from(metrics.loops.accepted_false > 0 || j.wrong_joins > 0);
+            }
+            scale.extend(metrics.sim3_scale);
+            drift.extend(metrics.drift.map(|d| d.translation_percent));
             // A run without its timing still counts for accuracy.
             if let Ok(Some(timing)) = run.read_timing() {
                 rtf.push(timing.realtime_factor_plugin);
@@ -68,6 +82,10 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
         row.ate_rmse_m = summarize(&ate);
         row.loops_accepted = summarize(&accepted);
         row.loops_false = summarize(&false_);
+        row.wrong_joins = summarize(&joins);
+        row.false_join_runs = eval::Rate::wilson(false_join, judged);
+        row.sim3_scale = summarize(&scale);
+        row.drift_percent = summarize(&drift);
         row.speed = Speed {
             realtime_factor: summarize(&rtf),
             cpu_s: summarize(&cpu),

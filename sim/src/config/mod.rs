@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::SimError;
 
@@ -17,7 +17,7 @@ pub use route::RouteSpec;
 pub use sensors::*;
 
 /// The complete simulator configuration.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SimConfig {
     /// Seed of the world's geometry (terrain, plants); the run's seed drives sensor noise.
@@ -78,6 +78,15 @@ impl SimConfig {
                 Self::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")
             }
         }
+    }
+
+    /// The whole configuration as TOML, every key written out (the built-in scenarios
+    /// too): reads back with [`Self::from_toml_str`] to an equal configuration, whatever
+    /// file it came from and whatever defaults a later version has. A run folder keeps it as
+    /// `world.toml`, so the run can be read back (and its frames rendered again) when the
+    /// world file has changed or is on another machine.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a SimConfig is TOML-shaped")
     }
 
     pub fn from_file(path: &Path) -> Result<Self, SimError> {
@@ -231,7 +240,7 @@ fn in_range(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), String> {
 }
 
 /// Which ray caster the sensors use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum RaycasterKind {
     #[default]
@@ -243,7 +252,7 @@ pub enum RaycasterKind {
 }
 
 /// The vine block: rows along the world x axis, starting at x = 0, the first row at y = 0.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct VineyardConfig {
     pub rows: usize,
@@ -309,7 +318,7 @@ impl VineyardConfig {
 /// Upright boxes around the block: the paper's perimeter fence of wooden panels
 /// (`wooden_fence` in `vineyard_stage0_riseholme_vertical.world`, its mesh `fence.dae` on
 /// LCAS/bacchus_lcas `master`). Seen by every sensor, with the posts' wood material.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FenceConfig {
     /// Each `[x, y, yaw_deg]`: a panel's centre on the ground and the direction of its
@@ -329,7 +338,7 @@ impl Default for FenceConfig {
 }
 
 /// Ground height field: smooth seeded noise plus an optional constant slope.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TerrainConfig {
     /// Peak amplitude of the long undulations.
@@ -383,7 +392,7 @@ impl TerrainConfig {
 }
 
 /// The Thorvald-like base and its path-following controller.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RobotConfig {
     /// Wheel contact points in the base frame: (±x, ±y).
@@ -420,7 +429,7 @@ impl Default for RobotConfig {
 }
 
 /// A sensor's mounting: translation (m) and roll, pitch, yaw (deg) of `base_from_sensor`.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Mount {
     pub xyz_m: [f64; 3],
@@ -460,6 +469,22 @@ mod tests {
             SimConfig::default(),
             "configs/world.toml and SimConfig::default() differ"
         );
+    }
+
+    /// Every shipped world, written out whole, reads back to the same configuration.
+    #[test]
+    fn a_written_world_reads_back_equal() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
+        let mut worlds = vec![SimConfig::default()];
+        for name in ["paper-world.toml", "world.toml"] {
+            let path = Path::new(root).join(name);
+            worlds.push(SimConfig::from_file(&path).expect("shipped world parses"));
+        }
+        for world in worlds {
+            let text = world.to_toml_string();
+            let back = SimConfig::from_toml_str(&text, "written").expect("reads back");
+            assert_eq!(back, world, "{text}");
+        }
     }
 
     #[test]

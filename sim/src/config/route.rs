@@ -4,7 +4,7 @@
 use super::*;
 
 /// A route through the vineyard. Lanes are numbered from 0 (between rows 0 and 1).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum RouteSpec {
     /// Straight along a lane, starting `start_x_m` along the row axis.

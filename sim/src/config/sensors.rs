@@ -5,7 +5,7 @@ use super::*;
 
 /// Which noise a sensor adds: `typical` (a datasheet's figures) or `none` (the paper's
 /// noise-free Gazebo sensors).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum NoiseProfile {
     #[default]
@@ -13,7 +13,7 @@ pub enum NoiseProfile {
     None,
 }
 
-#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize, Default)]
 #[serde(default, deny_unknown_fields)]
 pub struct SensorsConfig {
     pub ground_truth: GroundTruthConfig,
@@ -25,7 +25,7 @@ pub struct SensorsConfig {
     pub camera: CameraConfig,
 }
 
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct GroundTruthConfig {
     pub rate_hz: f64,
@@ -38,7 +38,7 @@ impl Default for GroundTruthConfig {
 }
 
 /// IMU noise as a datasheet (or Kalibr's `imu.yaml`) states it: continuous-time densities.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ImuConfig {
     pub rate_hz: f64,
@@ -82,7 +82,7 @@ impl Default for ImuConfig {
 }
 
 /// Wheel odometry: velocities measured by the wheel encoders and integrated in the plane.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct WheelOdometryConfig {
     pub rate_hz: f64,
@@ -114,7 +114,7 @@ impl Default for WheelOdometryConfig {
 }
 
 /// A spinning multi-beam lidar (defaults: Velodyne VLP-16).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LidarConfig {
     pub rate_hz: f64,
@@ -155,7 +155,7 @@ impl Default for LidarConfig {
 }
 
 /// A planar scanning lidar (defaults: the paper's front and back 2D lidars).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Scan2dConfig {
     pub rate_hz: f64,
@@ -190,7 +190,7 @@ impl Default for Scan2dConfig {
 /// An RGB-D camera (defaults: a Kinect v2 with its depth registered to a 640x480 colour
 /// image, as the paper's simulated camera). See [`crate::camera`] for the frames and the
 /// noise model.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraConfig {
     pub rate_hz: f64,
@@ -253,7 +253,7 @@ pub struct CameraConfig {
 }
 
 /// The camera's background: the sky, or one colour.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(untagged)]
 pub enum Background {
     /// `"sky"`.
@@ -263,7 +263,7 @@ pub enum Background {
 }
 
 /// The one word `"sky"`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SkyTag {
     Sky,
@@ -276,7 +276,7 @@ impl Default for Background {
 }
 
 /// How a separately rendered depth image is paired with the colour image.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum DepthRegistration {
     /// Depth pixel (u, v) handed over as colour pixel (u, v): the paper's pairing.

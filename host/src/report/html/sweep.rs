@@ -49,7 +49,10 @@ pub fn sweep_page(name: &str, agg: &Aggregate) -> anyhow::Result<String> {
         for (path, _) in &agg.axes {
             let _ = write!(body, "<th>{}</th>", esc(path));
         }
-        body.push_str("<th>ok / failed / missing</th><th>ATE RMSE (m)</th><th>min</th><th>max</th><th>loops accepted</th><th>false loops</th><th>RTF</th></tr>\n");
+        for h in crate::report::sweep::ROW_HEADERS {
+            let _ = write!(body, "<th>{}</th>", esc(h));
+        }
+        body.push_str("</tr>\n");
         for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
             let _ = write!(body, "<tr><td class=\"l\">{}</td>", esc(&row.system));
             for (_, v) in &row.axes {
