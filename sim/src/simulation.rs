@@ -10,8 +10,8 @@ use crate::raycast::{Bvh, ParryCaster, RayCaster};
 use crate::rng::stream;
 use crate::robot::{Route, Trajectory, drive};
 use crate::sensors::{
-    GroundTruthSensor, ImuSensor, LidarSensor, Message, RgbdSensor, Scan2dSensor, ScanSide, Scene,
-    Sensor, WheelOdometrySensor,
+    GroundTruthSensor, ImuSensor, LidarSensor, Message, RgbdFrame, RgbdSensor, Scan2dSensor,
+    ScanSide, Scene, Sensor, WheelOdometrySensor,
 };
 use crate::world::World;
 
@@ -146,6 +146,37 @@ impl Simulation {
             trajectory: &self.trajectory,
             caster: self.caster.as_ref(),
         }
+    }
+
+    /// The camera frame of the stream (`stream` with `rgbd`) whose stamp is the latest at or
+    /// before `stamp_ns`, exactly as the stream gives it (the same pose, and the same noise:
+    /// frame `k` renders with the `k`-th seed of the camera's stream, which is drawn here
+    /// without rendering the frames before it). `None` before the first frame or after the
+    /// route. Lets an evaluation show the frames a system was given without keeping them.
+    pub fn rgbd_frame_at(&self, stamp_ns: i64) -> Option<RgbdFrame> {
+        let rate_hz = self.config.sensors.camera.rate_hz;
+        if stamp_ns < 0 || stamp_ns > self.duration_ns() || rate_hz.is_nan() || rate_hz <= 0.0 {
+            return None;
+        }
+        // The frame index from the stamp, then corrected for the rounding of
+        // `sample_time_ns` so that its stamp is the latest at or before `stamp_ns`.
+        let mut k = (stamp_ns as f64 * rate_hz / 1e9).floor() as u64;
+        while k > 0 && crate::sensors::sample_time_ns(k, rate_hz) > stamp_ns {
+            k -= 1;
+        }
+        while crate::sensors::sample_time_ns(k + 1, rate_hz) <= stamp_ns {
+            k += 1;
+        }
+        let mut rng = stream(self.seed, "rgbd");
+        for _ in 0..k {
+            let _: u64 = rand::Rng::random(&mut rng);
+        }
+        let camera = RgbdCamera::new(&self.config.sensors.camera, &self.world);
+        let frame_ns = crate::sensors::sample_time_ns(k, rate_hz);
+        Some(RgbdFrame {
+            stamp_ns: frame_ns,
+            image: camera.render(&self.trajectory.pose(frame_ns), &mut rng),
+        })
     }
 
     /// The time-ordered message stream of the selected sensors.

@@ -192,11 +192,20 @@ class Merger(WheelOdometry):
     merge); without it, nothing. The judge of `runner::loops` must see the join either way
     (host/tests/e2e/joins.rs)."""
 
+    @staticmethod
+    def requirements(params):
+        """With `camera` it takes the camera too (and ignores it), so that its run counts as
+        a camera run whose frames the evaluation renders again."""
+        return ["wheel_odometry", "rgbd"] if params.get("camera") else ["wheel_odometry"]
+
     def __init__(self, params, rig):
         super().__init__(params, rig)
         self.shift_from_ns = int(params.get("shift_from_s", 1e9) * 1e9)
         self.shift_xy = params.get("shift_xy", [0.0, 0.0])
         self.event_s = params.get("event_s")
+
+    def on_rgbd(self, frame):
+        return None
 
     def finish(self):
         trajectory = []

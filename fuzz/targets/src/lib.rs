@@ -392,6 +392,8 @@ pub fn report_maps(data: &[u8]) {
         stamps_s: vec![0.0, 1.0, 2.0],
         errors_m: errors,
         loops: Vec::new(),
+        joins: None,
+        frames: None,
     };
     let results = BenchResults {
         dir: dir.path().to_path_buf(),

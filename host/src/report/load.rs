@@ -65,6 +65,8 @@ pub struct AcceptedLoop {
     pub stamps_ns: Option<[i64; 2]>,
     /// Ground truth's judgement; `None`: not judged.
     pub true_loop: Option<bool>,
+    /// What the judgement rests on.
+    pub judged_by: Option<crate::results::JudgedBy>,
     pub gt_distance_m: Option<f64>,
     /// The segment on the aligned estimate, when the stamps lie on it.
     pub segment: Option<LoopSegment>,
@@ -82,6 +84,29 @@ pub struct RunDetail {
     pub stamps_s: Vec<f64>,
     pub errors_m: Vec<f64>,
     pub loops: Vec<AcceptedLoop>,
+    /// The final map's episodes (`joins.json`); `None` for a run evaluated before them.
+    pub joins: Option<crate::results::Joins>,
+    /// The camera frames of its false loops, wrong joins and some true loops
+    /// (`frames.json`); `None` when none were rendered.
+    pub frames: Option<crate::results::Frames>,
+}
+
+impl RunDetail {
+    /// The wrong joins as segments between the two true places each joins (top view).
+    pub fn wrong_join_segments(&self) -> Vec<LoopSegment> {
+        self.joins.as_ref().map_or_else(Vec::new, |j| {
+            j.report
+                .wrong_joins
+                .iter()
+                .map(|e| LoopSegment {
+                    from: (e.later_place[0], e.later_place[1]),
+                    to: (e.earlier_place[0], e.earlier_place[1]),
+                    true_loop: false,
+                    wrong_join: true,
+                })
+                .collect()
+        })
+    }
 }
 
 /// One run of the bench.
@@ -203,6 +228,7 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
                     from: at(a)?,
                     to: at(b)?,
                     true_loop: e.true_loop?,
+                    wrong_join: false,
                 })
             });
             AcceptedLoop {
@@ -210,6 +236,7 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
                 detail: e.event.detail,
                 stamps_ns: e.event.loop_stamps_ns,
                 true_loop: e.true_loop,
+                judged_by: e.judged_by,
                 gt_distance_m: e.gt_distance_m,
                 segment,
             }
@@ -231,6 +258,8 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
         stamps_s: ape.stamps_s,
         errors_m: ape.errors_m,
         loops,
+        joins: folder.read_joins()?,
+        frames: folder.read_frames()?,
     };
     Ok(LoadedRun {
         record,

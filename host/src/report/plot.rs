@@ -17,6 +17,8 @@ const GROUND_TRUTH: Rgb = [0, 0, 0];
 /// grey), red and wider when false, so a false loop stands out.
 const TRUE_LOOP: Rgb = [110, 110, 110];
 const FALSE_LOOP: Rgb = [230, 0, 30];
+/// Wrong joins of the final map: orange, between the two true places they join.
+const WRONG_JOIN: Rgb = [245, 130, 0];
 /// Okabe & Ito's colour-blind-safe palette (without black, which is the ground truth),
 /// yellow last as it is faint on white; plugin `i` gets colour `i % 7`.
 const PALETTE: [Rgb; 7] = [
@@ -41,6 +43,9 @@ pub struct LoopSegment {
     pub from: (f64, f64),
     pub to: (f64, f64),
     pub true_loop: bool,
+    /// A wrong join of the final map (`joins.json`), drawn between the two places it joins
+    /// in ground truth, not an accepted loop.
+    pub wrong_join: bool,
 }
 
 /// An ok run's aligned estimate (top view) and its loops.
@@ -58,7 +63,8 @@ pub struct Track<'a> {
 
 /// The paper's Fig. 3 for one scenario: ground truth in black (wide, so it shows as an
 /// outline where an estimate lies on it), every ok system's aligned estimate in its
-/// colour, accepted loops as segments (true thin grey, false wider red), in metres with
+/// colour, accepted loops as segments (true thin grey, false wider red) and the final map's
+/// wrong joins between the two true places they join (orange), in metres with
 /// equal scales; the legend names ground truth, every system (failed ones with their
 /// reason) and the loop colours when there are loops.
 pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) -> Chart {
@@ -77,7 +83,7 @@ pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) ->
         },
         "ground truth".into(),
     ));
-    let (mut true_loops, mut false_loops) = (Vec::new(), Vec::new());
+    let (mut true_loops, mut false_loops, mut wrong_joins) = (Vec::new(), Vec::new(), Vec::new());
     for track in tracks {
         match track.outcome {
             Ok((xy, loops)) => {
@@ -93,7 +99,9 @@ pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) ->
                     .legend
                     .push((Swatch::Line { color, width_px: 3 }, track.plugin.to_owned()));
                 for l in loops {
-                    let list = if l.true_loop {
+                    let list = if l.wrong_join {
+                        &mut wrong_joins
+                    } else if l.true_loop {
                         &mut true_loops
                     } else {
                         &mut false_loops
@@ -110,6 +118,11 @@ pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) ->
     for (segments, color, label) in [
         (true_loops, TRUE_LOOP, "true loop closures"),
         (false_loops, FALSE_LOOP, "false loop closures"),
+        (
+            wrong_joins,
+            WRONG_JOIN,
+            "wrong joins of the final map (between the true places)",
+        ),
     ] {
         if !segments.is_empty() {
             chart.legend.push((

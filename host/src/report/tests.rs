@@ -529,16 +529,19 @@ fn loops_are_segments_grey_when_true_and_red_when_false() {
             from: (1.0, 0.0),
             to: (5.0, 0.0),
             true_loop: true,
+            wrong_join: false,
         },
         LoopSegment {
             from: (2.0, 0.0),
             to: (8.0, 1.0),
             true_loop: false,
+            wrong_join: false,
         },
         LoopSegment {
             from: (3.0, 0.0),
             to: (6.0, 0.0),
             true_loop: true,
+            wrong_join: false,
         },
     ];
     let tracks = [

@@ -28,8 +28,8 @@ pub use folder::{
 };
 pub use maps::{read_ply, write_grid, write_ply};
 pub use run::{
-    ApeSeries, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency, Metrics, RunFolder, RunOutcome,
-    RunStatus, Timing, Transform, write_json,
+    ApeSeries, FramePair, Frames, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency, Metrics,
+    PairKind, RunFolder, RunOutcome, RunStatus, Timing, Transform, write_json,
 };
 
 /// File names inside a run folder.
@@ -57,6 +57,10 @@ pub mod files {
     /// (`sim::SimConfig::to_toml_string`): `run.toml`'s `world` names its source file, which
     /// may change or stay on another machine.
     pub const WORLD: &str = "world.toml";
+    /// The camera frames of the run's false loops, wrong joins and some true loops, rendered
+    /// again at evaluation (`runner::frames`), and their list.
+    pub const FRAMES_DIR: &str = "frames";
+    pub const FRAMES: &str = "frames.json";
     /// How the run ended (`RunStatus::text`), written as it ends: what lets an interrupted
     /// bench resume without running it again.
     pub const STATUS: &str = "status.txt";

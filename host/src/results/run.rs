@@ -197,6 +197,34 @@ pub struct JudgedEvent {
     pub error_after_m: Option<f64>,
 }
 
+/// What a pair of frames shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PairKind {
+    FalseLoop,
+    TrueLoop,
+    WrongJoin,
+}
+
+/// One pair of frames: the later and the earlier place, their frames' stamps and files
+/// (relative to the run folder).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FramePair {
+    pub kind: PairKind,
+    /// Index into `events.json` (loops) or `joins.json`'s `wrong_joins`.
+    pub index: usize,
+    /// The frames' stamps, later then earlier, nanoseconds.
+    pub stamps_ns: [i64; 2],
+    pub files: [String; 2],
+}
+
+/// `frames.json`: the camera frames of a run's false loops, wrong joins and a sample of
+/// its true loops, rendered again at evaluation (`runner::frames`) into `frames/`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Frames {
+    pub pairs: Vec<FramePair>,
+}
+
 /// Latency percentiles of one kind of call, milliseconds.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Latency {
@@ -349,6 +377,16 @@ impl RunFolder {
 
     pub fn write_judged_events(&self, events: &[JudgedEvent]) -> anyhow::Result<()> {
         write_json(&self.path(files::EVENTS), &events)
+    }
+
+    /// `frames.json`, if frames were rendered for the run.
+    pub fn read_frames(&self) -> anyhow::Result<Option<Frames>> {
+        let path = self.path(files::FRAMES);
+        path.exists().then(|| read_json(&path)).transpose()
+    }
+
+    pub fn write_frames(&self, frames: &Frames) -> anyhow::Result<()> {
+        write_json(&self.path(files::FRAMES), frames)
     }
 
     /// `joins.json`, if the run was evaluated since it was written.

@@ -68,6 +68,7 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
     let joins = explained(report, &judged);
     run.write_judged_events(&judged)?;
     run.write_joins(&joins)?;
+    super::frames::write_frames(run, &judged, &joins)?;
     let metrics = Metrics {
         alignment: alignment.name().to_owned(),
         ape: final_.stats,

@@ -4,6 +4,7 @@
 
 mod evaluate;
 pub mod feed;
+mod frames;
 pub mod interrupt;
 pub mod job;
 mod loops;

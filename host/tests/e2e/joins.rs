@@ -18,10 +18,26 @@ fn merger_runs(
     max_time_s: f64,
     runs: &[(&str, &str)],
 ) -> Vec<std::path::PathBuf> {
+    merger_runs_in(dir, scenario, max_time_s, runs, None)
+}
+
+/// [`merger_runs`] in `world` (a world file's text), if given.
+fn merger_runs_in(
+    dir: &std::path::Path,
+    scenario: &str,
+    max_time_s: f64,
+    runs: &[(&str, &str)],
+    world: Option<&str>,
+) -> Vec<std::path::PathBuf> {
     let venv = venv("python-bridge-venv");
     let paths = fixture_paths();
     let mut toml =
         format!("scenarios = [\"{scenario}\"]\nseed = 0\nmax_time_s = {max_time_s:?}\njobs = 2\n");
+    if let Some(text) = world {
+        let file = dir.join("world.toml");
+        std::fs::write(&file, text).expect("world file");
+        toml += &format!("world = \"{}\"\n", file.display());
+    }
     for (label, params) in runs {
         toml += &python_entry(label, &paths, &venv, "bridge_fixtures", "Merger", params);
     }
@@ -142,5 +158,57 @@ fn a_stampless_loop_on_a_true_return_pass_is_true() {
     assert!(
         metrics["alignment_transform"]["rotation_xyzw"].is_array(),
         "{metrics}"
+    );
+}
+
+/// A camera run's wrong join gets its two frames: the evaluation renders again, from the
+/// run's world.toml and seed, the colour frames at the joined stamps into `frames/`, and the
+/// report shows them. S2 drives lane 3 east, then lane 4 (3 m away) west from about 62 s;
+/// the fixture moves its final poses from 65 s on 3 m onto lane 3. The camera runs at 2 Hz
+/// in this test's world (a cheap stream; the frames are the same renderer's).
+#[test]
+fn a_camera_runs_wrong_join_gets_its_two_frames_in_the_report() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let folders = merger_runs_in(
+        dir.path(),
+        "s2",
+        90.0,
+        &[(
+            "camera-merge",
+            "camera = true\nshift_from_s = 65.0\nshift_xy = [0.0, -3.0]\n",
+        )],
+        Some("[sensors.camera]\nrate_hz = 2.0\n"),
+    );
+    let run = &folders[0];
+    let metrics = json(&run.join("metrics.json"));
+    assert_eq!(metrics["joins"]["wrong_joins"], 1, "{metrics}");
+    let frames = json(&run.join("frames.json"));
+    let pair = &frames["pairs"][0];
+    assert_eq!(pair["kind"], "wrong_join", "{frames}");
+    let images: Vec<Vec<u8>> = (0..2)
+        .map(|k| {
+            let file = pair["files"][k].as_str().expect("a file");
+            let bytes = std::fs::read(run.join(file)).expect("the frame");
+            let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+            let mut reader = decoder.read_info().expect("a PNG");
+            let mut buf = vec![0; reader.output_buffer_size().expect("size")];
+            let info = reader.next_frame(&mut buf).expect("its pixels");
+            assert_eq!((info.width, info.height), (640, 480), "{file}");
+            buf
+        })
+        .collect();
+    assert_ne!(images[0], images[1], "two places, two frames");
+    let stamps: Vec<i64> = (0..2)
+        .map(|k| pair["stamps_ns"][k].as_i64().expect("stamp"))
+        .collect();
+    assert!(
+        stamps[0] >= 65_000_000_000 && stamps[1] < 50_000_000_000,
+        "{pair}"
+    );
+    let html = std::fs::read_to_string(run.join("../../report.html")).expect("report.html");
+    assert!(
+        html.contains("s2/camera-merge/frames/wrong-join-0-later.png")
+            && html.contains("wrong join #0 of the final map"),
+        "the report shows the pair"
     );
 }

@@ -326,6 +326,12 @@ pub struct FenceConfig {
     pub panels: Vec<[f64; 3]>,
     /// Length, thickness and height of a panel.
     pub panel_size_m: [f64; 3],
+    /// `false` (the paper's world): every panel is the same mesh with the same wood, as the
+    /// 56 copies of `fence.dae` are. `true`: every panel's wood has its own grain and knots
+    /// (its texture coordinates moved by a seeded offset of up to 50 m, drawn from the
+    /// world seed per panel), its geometry unchanged: the switch that asks whether repeated
+    /// panels fool a camera's place recognition.
+    pub distinct_panels: bool,
 }
 
 impl Default for FenceConfig {
@@ -333,6 +339,7 @@ impl Default for FenceConfig {
         Self {
             panels: Vec::new(),
             panel_size_m: [2.0, 0.15, 1.7],
+            distinct_panels: false,
         }
     }
 }

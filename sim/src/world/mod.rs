@@ -9,6 +9,7 @@ mod vine;
 use std::ops::Range;
 
 use nalgebra::{Point3, Vector3};
+use rand::Rng as _;
 use rayon::prelude::*;
 
 pub use mesh::{Material, Mesh};
@@ -69,13 +70,22 @@ impl World {
         }
         let mut world = Self::build_on(vineyard, terrain_cfg, terrain, world_seed);
         let [length, thickness, height] = fence.panel_size_m;
+        let mut textures = stream(world_seed, "fence/texture");
         for &[x, y, yaw_deg] in &fence.panels {
             let foot = Point3::new(x, y, world.terrain.height(x, y));
+            // Drawn only when asked, so a fence of identical panels leaves every other
+            // stream of the world as it was.
+            let tex_offset = if fence.distinct_panels {
+                std::array::from_fn(|_| textures.random_range(0.0f32..50.0))
+            } else {
+                [0.0; 3]
+            };
             shapes::panel(
                 &mut world.mesh,
                 foot.cast(),
                 yaw_deg.to_radians() as f32,
                 [length as f32, thickness as f32, height as f32],
+                tex_offset,
             );
             world.fence.push(foot);
         }

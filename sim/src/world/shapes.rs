@@ -135,8 +135,9 @@ pub fn post(mesh: &mut Mesh, base: Point3<f32>, width: f32, height: f32) {
 
 /// An upright box standing on `foot` (the centre of its base; sunk 0.1 m into the ground
 /// so no gap shows on a slope), `size` = (length, thickness, height), its length along
-/// `yaw` from world x: a fence panel. Texture space is panel-local, like a post's.
-pub fn panel(mesh: &mut Mesh, foot: Point3<f32>, yaw: f32, size: [f32; 3]) {
+/// `yaw` from world x: a fence panel. Texture space is panel-local, like a post's, moved by
+/// `tex_offset` (zero: every panel looks the same).
+pub fn panel(mesh: &mut Mesh, foot: Point3<f32>, yaw: f32, size: [f32; 3], tex_offset: [f32; 3]) {
     let [l, t, h] = size;
     let (c, s) = (yaw.cos(), yaw.sin());
     let (along, across) = (Vector3::new(c, s, 0.0), Vector3::new(-s, c, 0.0));
@@ -146,7 +147,7 @@ pub fn panel(mesh: &mut Mesh, foot: Point3<f32>, yaw: f32, size: [f32; 3]) {
         let local = [a * l, b * t, z];
         (
             foot + along * local[0] + across * local[1] + Vector3::z() * z,
-            local,
+            std::array::from_fn(|k| local[k] + tex_offset[k]),
         )
     };
     let bottom: Vec<u32> = (0..4)

@@ -422,3 +422,32 @@ fn a_depth_pass_gives_the_colour_passes_depth_bit_for_bit() {
         assert_eq!(a.rgb, b.rgb, "the colour is the colour pass's");
     }
 }
+
+/// `fence.distinct_panels` changes the panels' wood only: the same geometry and the same
+/// texture everywhere else, and each panel's texture coordinates moved by its own offset
+/// (with the switch off, every panel has the same ones, as the paper's copies of one mesh).
+#[test]
+fn distinct_fence_panels_differ_in_texture_only() {
+    let same = paper_world();
+    let mut distinct = same.clone();
+    distinct.fence.distinct_panels = true;
+    let (a, b) = (World::from_config(&same), World::from_config(&distinct));
+    assert_eq!(a.mesh.vertices, b.mesh.vertices, "geometry unchanged");
+    assert_eq!(a.mesh.triangles, b.mesh.triangles);
+    assert_eq!(a.mesh.materials, b.mesh.materials);
+    // The panels are the last vertices built: 8 each.
+    let panels = same.fence.panels.len();
+    assert!(panels > 10, "the paper's fence has {panels} panels");
+    let first_panel = a.mesh.vertices.len() - 8 * panels;
+    assert_eq!(
+        a.mesh.tex[..first_panel],
+        b.mesh.tex[..first_panel],
+        "the rest of the world keeps its texture"
+    );
+    let panel_tex =
+        |w: &World, k: usize| w.mesh.tex[first_panel + 8 * k..first_panel + 8 * (k + 1)].to_vec();
+    for k in 1..panels {
+        assert_eq!(panel_tex(&a, k), panel_tex(&a, 0), "identical panels: {k}");
+        assert_ne!(panel_tex(&b, k), panel_tex(&b, 0), "distinct panels: {k}");
+    }
+}

@@ -530,3 +530,33 @@ fn resting_imu_reads_gravity() {
         first.gyro_rps
     );
 }
+
+/// A camera frame rendered on its own (`Simulation::rgbd_frame_at`, what an evaluation
+/// shows of a loop) is byte for byte the frame the stream gave at that stamp, noise
+/// included, and a stamp between frames gives the latest frame before it.
+#[test]
+fn a_camera_frame_rendered_alone_is_the_streams_frame() {
+    let sim = Simulation::new(&SimConfig::default(), "s0", 3).expect("S0 builds");
+    let frames: Vec<sim::sensors::RgbdFrame> = sim
+        .stream(only("rgbd"))
+        .filter_map(|m| match m {
+            Message::Rgbd(f) => Some(f),
+            _ => None,
+        })
+        .take(6)
+        .collect();
+    let last = &frames[5];
+    let alone = sim.rgbd_frame_at(last.stamp_ns).expect("frame 5");
+    assert_eq!(alone.stamp_ns, last.stamp_ns);
+    assert!(
+        alone.image.rgb == last.image.rgb && alone.image.depth_m == last.image.depth_m,
+        "the same bytes"
+    );
+    let between = sim
+        .rgbd_frame_at(frames[4].stamp_ns + 1)
+        .expect("between frames 4 and 5");
+    assert_eq!(between.stamp_ns, frames[4].stamp_ns);
+    assert!(between.image.rgb == frames[4].image.rgb);
+    assert!(sim.rgbd_frame_at(-1).is_none());
+    assert!(sim.rgbd_frame_at(sim.duration_ns() + 1).is_none());
+}

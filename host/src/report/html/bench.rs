@@ -2,6 +2,8 @@
 //! run folded.
 
 use super::*;
+use crate::results::JudgedBy;
+use crate::results::PairKind;
 
 /// Builds and writes the report of the bench results in `dir` (titled `name`, the
 /// folder's final name); returns its size in bytes.
@@ -207,7 +209,13 @@ pub(super) fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow:
         .map(|r| {
             r.detail
                 .as_ref()
-                .map(|d| d.loops.iter().filter_map(|l| l.segment).collect())
+                .map(|d| {
+                    d.loops
+                        .iter()
+                        .filter_map(|l| l.segment)
+                        .chain(d.wrong_join_segments())
+                        .collect()
+                })
                 .unwrap_or_default()
         })
         .collect();
@@ -236,15 +244,20 @@ pub(super) fn scenario_figure(results: &BenchResults, scenario: &str) -> anyhow:
         .zip(&loops)
         .filter(|(_, l)| !l.is_empty())
         .map(|(r, l)| {
-            let false_ = l.iter().filter(|s| !s.true_loop).count();
-            format!("{} {} ({false_} false)", r.record.plugin, l.len())
+            let joins = l.iter().filter(|s| s.wrong_join).count();
+            let loops = l.len() - joins;
+            let false_ = l.iter().filter(|s| !s.true_loop && !s.wrong_join).count();
+            format!(
+                "{} {loops} ({false_} false), {joins} wrong joins",
+                r.record.plugin
+            )
         })
         .collect();
     let loops_text = if per_system.is_empty() {
-        "no accepted loop closure to draw".to_owned()
+        "no accepted loop closure or wrong join to draw".to_owned()
     } else {
         format!(
-            "accepted loop closures drawn between the poses they join on the system's own estimate, grey if ground truth confirms them, red if not: {}",
+            "accepted loop closures drawn between the poses they join on the system's own estimate, grey if ground truth confirms them, red if not; wrong joins of the final map (whatever the system reported) in orange between the two true places they join: {}",
             per_system.join(", ")
         )
     };
@@ -271,11 +284,15 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
             format!("<span class=\"bad\">failed: {}</span>", esc(reason))
         }
         (RunStatus::Ok, Some(ape)) => format!(
-            "ATE RMSE {:.3} m, RTF {}, loops {} ({} false)",
+            "ATE RMSE {:.3} m, RTF {}, loops {} ({} false), wrong joins {}",
             ape.rmse,
             fmt_opt(r.realtime_factor, 1),
             r.loops.map_or(0, |l| l.accepted),
-            r.loops.map_or(0, |l| l.accepted_false)
+            r.loops.map_or(0, |l| l.accepted_false),
+            r.joins.map_or_else(
+                || "n/a".to_owned(),
+                |j| format!("{} ({} silent)", j.wrong_joins, j.silent)
+            )
         ),
         (RunStatus::Ok, None) => "ok".into(),
     };
@@ -350,7 +367,7 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
     if let Some(detail) = &run.detail
         && !detail.loops.is_empty()
     {
-        h.push_str("<table><tr><th>accepted at (s)</th><th>joins (s)</th><th class=\"l\">judgement</th><th>ground-truth distance (m)</th><th class=\"l\">detail</th></tr>\n");
+        h.push_str("<table><tr><th>accepted at (s)</th><th>joins (s)</th><th class=\"l\">judgement</th><th class=\"l\">judged by</th><th>ground-truth distance (m)</th><th class=\"l\">detail</th></tr>\n");
         for l in &detail.loops {
             let joins = l.stamps_ns.map_or("n/a".into(), |[a, b]| {
                 format!("{:.1} – {:.1}", a as f64 * 1e-9, b as f64 * 1e-9)
@@ -360,15 +377,81 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
                 Some(false) => "<span class=\"bad\">false</span>",
                 None => "not judged",
             };
+            let judged_by = match l.judged_by {
+                Some(JudgedBy::Stamps) => "its stamps",
+                Some(JudgedBy::RelativePose) => "its relative pose",
+                Some(JudgedBy::FinalMap) => "the final map",
+                Some(JudgedBy::OnlineError) => "the online error",
+                None => "",
+            };
             let _ = writeln!(
                 h,
-                "<tr><td>{:.1}</td><td>{joins}</td><td class=\"l\">{judgement}</td><td>{}</td><td class=\"l\">{}</td></tr>",
+                "<tr><td>{:.1}</td><td>{joins}</td><td class=\"l\">{judgement}</td><td class=\"l\">{judged_by}</td><td>{}</td><td class=\"l\">{}</td></tr>",
                 l.stamp_ns as f64 * 1e-9,
                 fmt_opt(l.gt_distance_m, 2),
                 esc(&l.detail)
             );
         }
         h.push_str("</table>\n");
+    }
+    if let Some(joins) = run.detail.as_ref().and_then(|d| d.joins.as_ref())
+        && !joins.report.wrong_joins.is_empty()
+    {
+        h.push_str("<table><tr><th>later stretch (s)</th><th>earlier stretch (s)</th><th>travel (m)</th><th>apart in the estimate (m)</th><th>apart in truth (m)</th><th class=\"l\">true places (x, y)</th><th class=\"l\">explained by</th></tr>\n");
+        for (k, e) in joins.report.wrong_joins.iter().enumerate() {
+            let explained = if joins.silent.contains(&k) {
+                "<span class=\"bad\">nothing (silent)</span>"
+            } else {
+                "an accepted loop"
+            };
+            let _ = writeln!(
+                h,
+                "<tr><td>{:.1} – {:.1}</td><td>{:.1} – {:.1}</td><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td class=\"l\">({:.1}, {:.1}) and ({:.1}, {:.1})</td><td class=\"l\">{explained}</td></tr>",
+                e.later_s[0],
+                e.later_s[1],
+                e.earlier_s[0],
+                e.earlier_s[1],
+                e.travel_m,
+                e.estimate_distance_m,
+                e.truth_distance_m,
+                e.later_place[0],
+                e.later_place[1],
+                e.earlier_place[0],
+                e.earlier_place[1],
+            );
+        }
+        h.push_str("</table>\n<p class=\"note\">Wrong joins of the final map: stretches the estimate keeps within 1 m over 3 m or more that ground truth keeps more than 2.5 m apart (joins.json).</p>\n");
+    }
+    if let Some(frames) = run.detail.as_ref().and_then(|d| d.frames.as_ref())
+        && !frames.pairs.is_empty()
+    {
+        h.push_str("<div class=\"frames\">\n");
+        for pair in &frames.pairs {
+            let what = match pair.kind {
+                PairKind::FalseLoop => format!("false loop (events.json #{})", pair.index),
+                PairKind::TrueLoop => format!("true loop (events.json #{})", pair.index),
+                PairKind::WrongJoin => format!("wrong join #{} of the final map", pair.index),
+            };
+            let _ = write!(h, "<figure class=\"pair\">");
+            for file in &pair.files {
+                let _ = write!(
+                    h,
+                    "<img src=\"{}/{}/{}\" alt=\"{}\" loading=\"lazy\">",
+                    esc(&r.scenario),
+                    esc(&r.plugin),
+                    esc(file),
+                    esc(file)
+                );
+            }
+            let _ = writeln!(
+                h,
+                "<figcaption>{}: the colour frames the system was given at {:.2} s (left) and {:.2} s (right), rendered again from the run's world and seed.</figcaption></figure>",
+                esc(&what),
+                pair.stamps_ns[0] as f64 * 1e-9,
+                pair.stamps_ns[1] as f64 * 1e-9
+            );
+        }
+        h.push_str("</div>\n");
     }
     if let Some(toml) = &run.run_toml {
         let _ = writeln!(

@@ -52,6 +52,7 @@ tr.rule td{border-top:2px solid #888}tr.sep th{background:#dde6ee;font-size:14px
 td.failed{color:#b00000}
 figure{margin:12px 0}figcaption{font-size:13px;color:#444;max-width:900px}
 figure img,figure svg{max-width:100%;height:auto;border:1px solid #e4e4e4}
+figure.pair img{width:49%;margin-right:1%}
 .grid2{display:flex;flex-wrap:wrap;gap:16px}
 details{margin:6px 0;border:1px solid #e0e0e0;border-radius:4px;padding:4px 10px}
 summary{cursor:pointer;font-weight:bold}

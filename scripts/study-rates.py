@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+"""The rates table of issue 43 (docs/hroob/rates.md) from the runs scripts/study-rates.sh
+kept in docs/hroob/rates/runs/<sweep>/<key>/: per scenario, fence, plant variation and
+system, the runs with a false accepted loop or a wrong join of the final map, k of n, with
+the 95 % Wilson score interval (the formula of vinebench's eval::Rate: Wilson, JASA 1927),
+and the ATE RMSE mean ± sample std. Then every false loop and wrong join, with its frames.
+
+    python3 scripts/study-rates.py [--kept DIR] [--out FILE]
+"""
+
+import argparse
+import json
+import math
+import statistics
+from pathlib import Path
+
+Z = 1.959963984540054
+
+
+def wilson(k, n):
+    """The 95 % Wilson score interval of k of n (exactly 0 and 1 at k = 0 and k = n)."""
+    p = k / n
+    d = 1 + Z * Z / n
+    centre = (p + Z * Z / (2 * n)) / d
+    half = Z / d * math.sqrt(p * (1 - p) / n + Z * Z / (4 * n * n))
+    return (0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half))
+
+
+def cell_of(sweep, cell):
+    """(scenario, fence, variation, system) of a kept run."""
+    point = dict(cell["point"])
+    if "nofence" in sweep:
+        fence = "none"
+    elif point.get("fence.distinct_panels") == "true":
+        fence = "every panel different"
+    else:
+        fence = "as is"
+    variation = float(point.get("vineyard.plant_variation", "0.0"))
+    system = "orbslam2" if sweep.startswith("orbslam2") else "ORB-SLAM3"
+    return (cell["scenario"].upper(), fence, variation, system)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--kept", default="docs/hroob/rates/runs")
+    ap.add_argument("--out", default="docs/hroob/rates.md")
+    args = ap.parse_args()
+    kept, out = Path(args.kept), Path(args.out)
+    cells, failed, events = {}, {}, []
+    for cell_json in sorted(kept.glob("*/*/cell.json")):
+        run = cell_json.parent
+        sweep = run.parent.name
+        cell = json.loads(cell_json.read_text())
+        key = cell_of(sweep, cell)
+        if cell["status"] != "ok":
+            failed.setdefault(key, []).append(f"seed {cell['seed']}: {cell['status']}")
+            continue
+        metrics = json.loads((run / "metrics.json").read_text())
+        joins = metrics.get("joins")
+        if joins is None:
+            failed.setdefault(key, []).append(f"seed {cell['seed']}: evaluated without joins")
+            continue
+        false_loops = metrics["loops"]["accepted_false"]
+        wrong = joins["wrong_joins"]
+        cells.setdefault(key, []).append((false_loops > 0 or wrong > 0, metrics["ape"]["rmse"]))
+        frames = {}
+        if (run / "frames.json").exists():
+            for pair in json.loads((run / "frames.json").read_text())["pairs"]:
+                frames[(pair["kind"], pair["index"])] = [
+                    (run / f).relative_to(out.parent).as_posix() for f in pair["files"]
+                ]
+        judged = json.loads((run / "events.json").read_text())
+        for i, e in enumerate(judged):
+            if e.get("kind") == "loop_closure_accepted" and e.get("true_loop") is False:
+                events.append((key, cell["seed"], "false loop", e["stamp_ns"] * 1e-9,
+                               e.get("judged_by", ""), frames.get(("false_loop", i))))
+        if (run / "joins.json").exists():
+            j = json.loads((run / "joins.json").read_text())
+            for i, w in enumerate(j["wrong_joins"]):
+                what = "silent wrong join" if i in j["silent"] else "wrong join"
+                detail = (f"{w['later_s'][0]:.1f}–{w['later_s'][1]:.1f} s onto "
+                          f"{w['earlier_s'][0]:.1f}–{w['earlier_s'][1]:.1f} s, "
+                          f"{w['truth_distance_m']:.2f} m apart in truth")
+                events.append((key, cell["seed"], what, w["pair_s"][0], detail,
+                               frames.get(("wrong_join", i))))
+    lines = [
+        "# The central finding as rates (issue 43)",
+        "",
+        "Made by `bash scripts/study-rates.sh --table` from the runs kept in",
+        "`docs/hroob/rates/runs/` (the sweeps of `configs/study/rates/`, paper's world). A run",
+        "counts when it accepted a loop that ground truth shows false or its final trajectory",
+        "wrongly joins two places (`docs/runs.md`). Interval: 95 % Wilson. Ten runs tell only",
+        "large differences apart (0 of 10 is [0, 0.28], 5 of 10 [0.24, 0.76]).",
+        "",
+        "| scenario | fence | plant variation | system | runs | with a false loop or join | rate [95 % CI] | ATE RMSE (m) |",
+        "|---|---|---:|---|---:|---:|---|---|",
+    ]
+    for key in sorted(set(cells) | set(failed)):
+        runs = cells.get(key, [])
+        n, k = len(runs), sum(1 for bad, _ in runs if bad)
+        if n:
+            lo, hi = wilson(k, n)
+            rate = f"{k / n:.2f} [{lo:.2f}, {hi:.2f}]"
+            ates = [a for _, a in runs]
+            ate = f"{statistics.mean(ates):.3f}" + (f" ± {statistics.stdev(ates):.3f}" if n > 1 else "")
+        else:
+            rate = ate = "–"
+        scenario, fence, variation, system = key
+        extra = f" ({len(failed[key])} failed)" if key in failed else ""
+        lines.append(f"| {scenario} | {fence} | {variation:g} | {system} | {n}{extra} | {k} | {rate} | {ate} |")
+    lines += ["", "## Every false loop and wrong join", ""]
+    if not events:
+        lines.append("None in the runs kept so far.")
+    for key, seed, what, t, detail, files in sorted(events, key=lambda e: (e[0], e[1], e[3])):
+        scenario, fence, variation, system = key
+        text = f"- {scenario}, fence {fence}, variation {variation:g}, {system}, seed {seed}: {what} at {t:.1f} s"
+        if detail:
+            text += f" ({detail})"
+        if files:
+            text += f": [later]({files[0]}), [earlier]({files[1]})"
+        lines.append(text)
+    fails = [f"- {' / '.join(map(str, k))}: {r}" for k, rs in sorted(failed.items()) for r in rs]
+    if fails:
+        lines += ["", "## Failed runs", ""] + fails
+    out.write_text("\n".join(lines) + "\n")
+    print(f"{out}: {sum(len(r) for r in cells.values())} runs in {len(cells)} cells")
+
+
+if __name__ == "__main__":
+    main()

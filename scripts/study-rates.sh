@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Issue 43's rates (docs/hroob/README.md §5): how often orbslam2 and the real ORB-SLAM3 close
+# a false loop or wrongly join two places on the paper's world, per cell of S3 (the fence as
+# is / none / every panel's wood different × plant variation 0 / 1) and on S1, with Wilson
+# 95 % intervals. The sweeps of configs/study/rates/: orbslam2 two runs at a time, ORB-SLAM3
+# one at a time at real-time pace (it runs threads of its own). Hours on two cores; spread
+# it over sessions:
+#   bash scripts/study-rates.sh [SWEEP...]   run (or resume) the named sweeps, all by default
+#   bash scripts/study-rates.sh --save       keep the finished runs' small files in git
+#   bash scripts/study-rates.sh --table      write docs/hroob/rates.md from what is kept
+# A sweep resumes from its folder (results/rates/<sweep>/); on another machine, from what
+# --save kept in docs/hroob/rates/runs/ (restored before a sweep starts, so kept runs are
+# not run again). --save keeps each run's cell.json, metrics.json, joins.json, judged
+# events.json, frames.json and the frames of its false loops and wrong joins.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+results=results/rates
+kept=docs/hroob/rates/runs
+all=(orbslam2-s3 orbslam2-s3-decide orbslam2-s3-nofence orbslam2-s3-nofence-decide orbslam2-s1
+     orbslam3-s3 orbslam3-s3-decide orbslam3-s3-nofence orbslam3-s3-nofence-decide orbslam3-s1)
+
+save() {
+    for dir in "$results"/*/runs/*/; do
+        [ -f "$dir/cell.json" ] || continue
+        sweep=$(basename "$(dirname "$(dirname "$dir")")")
+        key=$(basename "$dir")
+        dest="$kept/$sweep/$key"
+        [ -f "$dest/cell.json" ] && continue
+        mkdir -p "$dest"
+        for f in cell.json metrics.json joins.json events.json frames.json; do
+            [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
+        done
+        if [ -d "$dir/frames" ]; then
+            mkdir -p "$dest/frames"
+            # The false loops' and wrong joins' frames; the true sample stays behind.
+            find "$dir/frames" -name 'false-loop-*' -o -name 'wrong-join-*' | xargs -r cp -t "$dest/frames/"
+        fi
+    done
+    echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"
+}
+
+case "${1:-}" in
+--save) save; exit 0 ;;
+--table) python3 scripts/study-rates.py --kept "$kept" --out docs/hroob/rates.md; exit 0 ;;
+esac
+
+source scripts/setup.sh
+cargo build --release
+vb=target/release/vinebench
+[ -f target/orbslam3-vocabulary.txt ] || target/release/orbslam2-vocabulary \
+    --export-dbow2-text plugins/orbslam2/vocabulary/vineyard-k10l6.dbow target/orbslam3-vocabulary.txt
+
+sweeps=("$@")
+[ ${#sweeps[@]} -gt 0 ] || sweeps=("${all[@]}")
+for s in "${sweeps[@]}"; do
+    out="$results/$s"
+    # Runs kept from another machine count as done.
+    if [ -d "$kept/$s" ]; then
+        mkdir -p "$out/runs"
+        cp -rn "$kept/$s"/. "$out/runs/"
+    fi
+    jobs=2
+    [[ $s == orbslam3-* ]] && jobs=1
+    "$vb" sweep "configs/study/rates/$s.toml" --out "$out" --jobs "$jobs" --allow-failures
+    save
+done
+python3 scripts/study-rates.py --kept "$kept" --out docs/hroob/rates.md
