@@ -6,6 +6,7 @@ the 95 % Wilson score interval (the formula of vinebench's eval::Rate: Wilson, J
 and the ATE RMSE mean ± sample std. Then every false loop and wrong join, with its frames.
 
     python3 scripts/study-rates.py [--kept DIR] [--out FILE]
+    python3 scripts/study-rates.py --missing configs/study/rates/X.toml --kept DIR/X
 """
 
 import argparse
@@ -40,11 +41,34 @@ def cell_of(sweep, cell):
     return (cell["scenario"].upper(), fence, variation, system)
 
 
+def missing_seeds(sweep_file, kept):
+    """The seeds of `sweep_file` with fewer kept runs (any status) in `kept` than the sweep
+    has points of its axes: what is left to run, whatever build made the kept ones (a
+    sweep's own resume keys on the plugin's bytes, which change with every rebuild)."""
+    import tomllib
+
+    cfg = tomllib.loads(Path(sweep_file).read_text())
+    points = 1
+    for values in cfg.get("axes", {}).values():
+        points *= len(values)
+    points *= len(cfg.get("scenarios", [])) * len(cfg.get("plugins", []))
+    have = {}
+    for cell_json in Path(kept).glob("*/cell.json"):
+        seed = json.loads(cell_json.read_text())["seed"]
+        have[seed] = have.get(seed, 0) + 1
+    return [s for s in cfg["seeds"] if have.get(s, 0) < points]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--kept", default="docs/hroob/rates/runs")
     ap.add_argument("--out", default="docs/hroob/rates.md")
+    ap.add_argument("--missing", metavar="SWEEP.toml",
+                    help="print the seeds of this sweep not yet kept in --kept (its folder) and stop")
     args = ap.parse_args()
+    if args.missing:
+        print(" ".join(str(s) for s in missing_seeds(args.missing, args.kept)))
+        return
     kept, out = Path(args.kept), Path(args.out)
     cells, failed, events = {}, {}, []
     for cell_json in sorted(kept.glob("*/*/cell.json")):

@@ -8,10 +8,10 @@
 #   bash scripts/study-rates.sh [SWEEP...]   run (or resume) the named sweeps, all by default
 #   bash scripts/study-rates.sh --save       keep the finished runs' small files in git
 #   bash scripts/study-rates.sh --table      write docs/hroob/rates.md from what is kept
-# A sweep resumes from its folder (results/rates/<sweep>/); on another machine, from what
-# --save kept in docs/hroob/rates/runs/ (restored before a sweep starts, so kept runs are
-# not run again). --save keeps each run's cell.json, metrics.json, joins.json, judged
-# events.json, frames.json and the frames of its false loops and wrong joins.
+# What --save kept in docs/hroob/rates/runs/ (each run's cell.json, metrics.json,
+# joins.json, judged events.json, frames.json and the frames of its false loops and wrong
+# joins) is what counts: a sweep runs only the seeds not kept yet, on any machine, and a
+# sweep stopped midway resumes from its folder (results/rates/<sweep>/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 results=results/rates
@@ -53,15 +53,17 @@ vb=target/release/vinebench
 sweeps=("$@")
 [ ${#sweeps[@]} -gt 0 ] || sweeps=("${all[@]}")
 for s in "${sweeps[@]}"; do
-    out="$results/$s"
-    # Runs kept from another machine count as done.
-    if [ -d "$kept/$s" ]; then
-        mkdir -p "$out/runs"
-        cp -rn "$kept/$s"/. "$out/runs/"
-    fi
+    file="configs/study/rates/$s.toml"
+    # Only the seeds not kept yet, whatever build ran the kept ones: a sweep's own resume
+    # keys its runs on the plugin library's bytes, which change with every rebuild.
+    missing=$(python3 scripts/study-rates.py --missing "$file" --kept "$kept/$s")
+    [ -n "$missing" ] || { echo "$s: every run kept"; continue; }
+    resume="configs/study/rates/.$s.resume.toml"
+    sed "s/^seeds = .*/seeds = [$(echo "$missing" | sed 's/ /, /g')]/" "$file" > "$resume"
     jobs=2
     [[ $s == orbslam3-* ]] && jobs=1
-    "$vb" sweep "configs/study/rates/$s.toml" --out "$out" --jobs "$jobs" --allow-failures
+    "$vb" sweep "$resume" --out "$results/$s" --jobs "$jobs" --allow-failures || true
+    rm -f "$resume"
     save
 done
 python3 scripts/study-rates.py --kept "$kept" --out docs/hroob/rates.md
