@@ -135,7 +135,8 @@ impl Joins {
         JoinCounts {
             wrong_joins: r.wrong_joins.len(),
             silent: self.silent.len(),
-            wrong_join_travel_m: r.wrong_joins.iter().map(|e| e.travel_m).sum(),
+            // A fold from +0: an empty `sum` of floats is -0.0.
+            wrong_join_travel_m: r.wrong_joins.iter().fold(0.0, |a, e| a + e.travel_m),
             crossings: r.crossings.len(),
             revisits: r.revisits.len(),
             missed_revisits: r.missed_revisits.len(),
