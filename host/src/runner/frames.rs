@@ -118,6 +118,23 @@ pub fn write_frames(run: &RunFolder, judged: &[JudgedEvent], joins: &Joins) -> a
 mod tests {
     use super::*;
 
+    /// Joins holding one wrong join of two stretches (seconds) and its closest pair.
+    fn one_wrong_join(later_s: [f64; 2], earlier_s: [f64; 2], pair_s: [f64; 2]) -> Joins {
+        let mut joins = Joins::default();
+        joins.report.wrong_joins.push(eval::JoinEpisode {
+            kind: eval::EpisodeKind::WrongJoin,
+            later_s,
+            earlier_s,
+            travel_m: 5.0,
+            estimate_distance_m: 0.1,
+            truth_distance_m: 5.8,
+            later_place: [0.0, 0.0],
+            earlier_place: [5.8, 0.0],
+            pair_s,
+        });
+        joins
+    }
+
     #[test]
     fn every_false_loop_and_wrong_join_and_two_true_loops_are_wanted() {
         use plugin_api::{Event, EventKind};
@@ -140,18 +157,7 @@ mod tests {
             judged_loop([30, 3], true),
             judged_loop([40, 4], true),
         ];
-        let mut joins = Joins::default();
-        joins.report.wrong_joins.push(eval::JoinEpisode {
-            kind: eval::EpisodeKind::WrongJoin,
-            later_s: [100.0, 110.0],
-            earlier_s: [5.0, 15.0],
-            travel_m: 5.0,
-            estimate_distance_m: 0.1,
-            truth_distance_m: 5.8,
-            later_place: [0.0, 0.0],
-            earlier_place: [5.8, 0.0],
-            pair_s: [105.0, 10.0],
-        });
+        let joins = one_wrong_join([100.0, 110.0], [5.0, 15.0], [105.0, 10.0]);
         let w = wanted(&judged, &joins);
         assert_eq!(
             w,
@@ -169,18 +175,7 @@ mod tests {
     fn a_run_without_a_world_or_a_camera_gets_no_frames() {
         let dir = tempfile::tempdir().expect("tempdir");
         let run = RunFolder::new(dir.path());
-        let mut joins = Joins::default();
-        joins.report.wrong_joins.push(eval::JoinEpisode {
-            kind: eval::EpisodeKind::WrongJoin,
-            later_s: [1.0, 2.0],
-            earlier_s: [0.0, 0.5],
-            travel_m: 3.0,
-            estimate_distance_m: 0.1,
-            truth_distance_m: 3.0,
-            later_place: [0.0, 0.0],
-            earlier_place: [3.0, 0.0],
-            pair_s: [1.5, 0.2],
-        });
+        let joins = one_wrong_join([1.0, 2.0], [0.0, 0.5], [1.5, 0.2]);
         write_frames(&run, &[], &joins).expect("no world: nothing to do");
         std::fs::write(run.path(files::WORLD), "").expect("world");
         std::fs::write(
