@@ -177,19 +177,22 @@ fn s4_runs_in_a_bench() {
     assert!(out.join("plots/s4.png").is_file());
 }
 
-/// Seconds of each route the paper bench test runs: the machinery and the systems' health,
-/// not the paper's figures.
-const PAPER_TEST_MAX_TIME_S: f64 = 12.0;
+/// Seconds of each route the shipped bench tests run on our world: the machinery and the
+/// systems' health, not the paper's figures.
+const PAPER_TEST_MAX_TIME_S: f64 = 6.0;
+/// On the paper's world, whose routes begin with a spin on the spot: cut sooner, S0's
+/// estimate is still all but one point and cannot be aligned.
+const PAPER_WORLD_TEST_MAX_TIME_S: f64 = 12.0;
 
-/// Runs a shipped bench file (relative to the workspace root) on the first
-/// [`PAPER_TEST_MAX_TIME_S`] of its routes into `out`; its standard output.
-fn shipped_bench_cut(file: &str, out: &Path) -> String {
+/// Runs a shipped bench file (relative to the workspace root) on the first `max_time_s` of
+/// its routes into `out`; its standard output.
+fn shipped_bench_cut(file: &str, max_time_s: f64, out: &Path) -> String {
     let config = workspace_root().join(file);
     let o = vinebench(&[
         "bench",
         config.to_str().expect("utf-8"),
         "--max-time",
-        &PAPER_TEST_MAX_TIME_S.to_string(),
+        &max_time_s.to_string(),
         "--out",
         out.to_str().expect("utf-8"),
     ]);
@@ -286,23 +289,23 @@ fn max_time_cuts_the_route() {
 }
 
 /// Our world's matrix file (`configs/vinebench.toml`: the paper's systems on our vineyard)
-/// runs as shipped (plugins found by name on the search path) on the first 12 s of S0–S3
-/// (`--max-time 12`): every system on every scenario of the default world, identical
+/// runs as shipped (plugins found by name on the search path) on the first 6 s of S0–S3
+/// (`--max-time 6`): every system on every scenario of the default world, identical
 /// plants. Every run succeeds and the table says the routes were cut; of
 /// the RTAB-Map-style plugin's loop closures — by appearance or by proximity, among rows
 /// that look alike — the host judges none it accepts false against ground truth
 /// (`loops_false` in table.json). The ORB-SLAM2-style plugin tracks every rendered frame of
-/// S0's first 20 s with a relative pose over 1 s (0.5 m) within 1 cm and 0.5° RMS of the
+/// S0's first 6 s with a relative pose over 1 s (0.5 m) within 1 cm and 0.5° RMS of the
 /// truth (evo's RPE with a 1 s delta); its loops are counted and judged, and printed —
 /// whether identical rows fool it is the experiment's answer, not an assertion. This test
-/// checks the machinery and the systems' health on the first 20 s; the comparison with the
+/// checks the machinery and the systems' health on the first 6 s; the comparison with the
 /// paper's Table 2 needs the full routes and comes from the full bench, `bash
 /// scripts/run.sh`.
 #[test]
 fn our_worlds_bench_prints_the_table_for_s0_to_s3() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("paper");
-    let stdout = shipped_bench_cut("configs/vinebench.toml", &out);
+    let stdout = shipped_bench_cut("configs/vinebench.toml", PAPER_TEST_MAX_TIME_S, &out);
     // table.md: one table under a two-level header; the terminal: one block per scenario.
     let md = std::fs::read_to_string(out.join("table.md")).expect("table.md");
     let header = md.lines().next().unwrap_or_default();
@@ -442,7 +445,7 @@ fn our_worlds_bench_prints_the_table_for_s0_to_s3() {
 fn paper_bench_runs_on_the_papers_world_beside_its_table() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("paper");
-    let stdout = shipped_bench_cut("configs/paper.toml", &out);
+    let stdout = shipped_bench_cut("configs/paper.toml", PAPER_WORLD_TEST_MAX_TIME_S, &out);
     let table = json(&out.join("table.json"));
     // The report: every run, the maps of lio-sam, rtabmap (and its grid), orbslam2 and
     // staticmapping.
@@ -828,10 +831,11 @@ fn build_out_of_tree(tmp: &Path, plugin_api: &Path) -> PathBuf {
     )
     .expect("copy source");
     std::fs::copy(root.join("Cargo.lock"), krate.join("Cargo.lock")).expect("copy lock");
-    // Shared across test runs so the dependencies build once.
+    // Shared across test runs so the dependencies build once; the dev profile, since the
+    // plugin's speed is not the test (from cold: 77 s against release's 88 s, one build each).
     let target = root.join("target/oot-plugins");
     let o = Command::new(env!("CARGO"))
-        .args(["build", "--release", "--manifest-path"])
+        .args(["build", "--manifest-path"])
         .arg(krate.join("Cargo.toml"))
         .arg("--target-dir")
         .arg(&target)
@@ -842,7 +846,7 @@ fn build_out_of_tree(tmp: &Path, plugin_api: &Path) -> PathBuf {
         "building the out-of-tree plugin failed:\n{}",
         text(&o.stderr)
     );
-    target.join("release").join(format!(
+    target.join("debug").join(format!(
         "{}oot_odometry{}",
         std::env::consts::DLL_PREFIX,
         std::env::consts::DLL_SUFFIX

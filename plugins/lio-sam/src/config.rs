@@ -29,6 +29,11 @@ pub struct Config {
     /// (`poses,full,seconds`), to check that the per-keyframe cost stays flat; a relative
     /// path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
+    /// Optional: a CSV file to write one line per sweep to (`system::TRACE_HEADER`: the
+    /// registration's outcome, matches and degenerate directions, the IMU state's speed and
+    /// bias after it, keyframes and loops), to see where an estimate goes wrong; a relative
+    /// path lands in the run's folder.
+    pub trace_csv: Option<std::path::PathBuf>,
 }
 
 /// No check beyond the types: every value the types allow is a valid setting.
@@ -47,6 +52,7 @@ impl Default for Config {
             loop_closure: LoopConfig::default(),
             backend: BackendConfig::default(),
             profile_csv: None,
+            trace_csv: None,
         }
     }
 }

@@ -25,20 +25,47 @@ pub struct Registration {
     pub degenerate_directions: usize,
 }
 
-/// Refines `initial` (`world_from_lidar` at the sweep's start). None when the sweep or the
-/// map has too few features to register.
+/// Why a sweep was not registered (its pose is then the prediction).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Refusal {
+    /// The sweep has fewer edge or planar points than the minimum.
+    ScanFeatures,
+    /// The local map has.
+    MapFeatures,
+    /// An iteration matched fewer edges than the minimum.
+    EdgeMatches,
+    /// An iteration matched fewer planar points than the minimum.
+    SurfMatches,
+    /// The normal equations could not be solved.
+    Solve,
+}
+
+impl Refusal {
+    /// The trace's name of it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::ScanFeatures => "scan_features",
+            Self::MapFeatures => "map_features",
+            Self::EdgeMatches => "edge_matches",
+            Self::SurfMatches => "surf_matches",
+            Self::Solve => "solve",
+        }
+    }
+}
+
+/// Refines `initial` (`world_from_lidar` at the sweep's start); refused when the sweep or
+/// the map has too few features to register.
 pub fn register(
     features: &Features,
     map: &LocalMap,
     initial: &Isometry3<f64>,
     cfg: &MappingConfig,
-) -> Option<Registration> {
-    if features.edges.len() < cfg.min_edge_points
-        || features.surfs.len() < cfg.min_surf_points
-        || map.corners.len() < cfg.min_edge_points
-        || map.surfs.len() < cfg.min_surf_points
-    {
-        return None;
+) -> Result<Registration, Refusal> {
+    if features.edges.len() < cfg.min_edge_points || features.surfs.len() < cfg.min_surf_points {
+        return Err(Refusal::ScanFeatures);
+    }
+    if map.corners.len() < cfg.min_edge_points || map.surfs.len() < cfg.min_surf_points {
+        return Err(Refusal::MapFeatures);
     }
     let mut pose = *initial;
     let mut nb = Vec::with_capacity(cfg.neighbours);
@@ -99,10 +126,13 @@ pub fn register(
                 surf_matches += 1;
             }
         }
-        if edge_matches < cfg.min_edge_points || surf_matches < cfg.min_surf_points {
-            return None;
+        if edge_matches < cfg.min_edge_points {
+            return Err(Refusal::EdgeMatches);
         }
-        let step = ne.solve(cfg.degeneracy_eigenvalue)?;
+        if surf_matches < cfg.min_surf_points {
+            return Err(Refusal::SurfMatches);
+        }
+        let step = ne.solve(cfg.degeneracy_eigenvalue).ok_or(Refusal::Solve)?;
         pose = apply(&step.delta, &pose);
         result = Registration {
             world_from_lidar: pose,
@@ -116,7 +146,7 @@ pub fn register(
             break;
         }
     }
-    Some(result)
+    Ok(result)
 }
 
 /// The lever arm that turns a rotation into a point displacement when deciding whether to

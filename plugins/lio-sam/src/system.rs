@@ -19,7 +19,7 @@ use crate::keyframe::KeyframeView;
 use crate::local_map::LocalMap;
 use crate::loop_closure::{candidate, verify};
 use crate::motion::{ImuQueue, Motion, propagate};
-use crate::registration::register;
+use crate::registration::{Registration, register};
 
 /// Sweeps over which the lidar-only motion model measures velocity.
 const VELOCITY_BASELINE: usize = 5;
@@ -39,6 +39,47 @@ struct SweepRecord {
     stamp_ns: i64,
     keyframe: usize,
     keyframe_from_lidar: Isometry3<f64>,
+}
+
+/// The columns of `trace_csv`, one line per sweep.
+pub const TRACE_HEADER: &str = "stamp_ns,outcome,iterations,scan_edges,scan_surfs,edge_matches,surf_matches,degenerate_directions,speed_mps,bias_accel_mps2,bias_gyro_radps,keyframe,loop";
+
+/// One sweep of the trace (`trace_csv`).
+#[derive(Debug, Clone)]
+struct TraceRow {
+    stamp_ns: i64,
+    /// `registered`, `first` (the first sweep), or the [`Refusal`]'s name.
+    outcome: &'static str,
+    registration: Option<Registration>,
+    scan_edges: usize,
+    scan_surfs: usize,
+    speed_mps: f64,
+    bias_accel_mps2: f64,
+    bias_gyro_radps: f64,
+    keyframe: bool,
+    loop_closed: bool,
+}
+
+impl TraceRow {
+    fn line(&self) -> String {
+        let r = self.registration;
+        format!(
+            "{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{}",
+            self.stamp_ns,
+            self.outcome,
+            r.map_or(0, |r| r.iterations),
+            self.scan_edges,
+            self.scan_surfs,
+            r.map_or(0, |r| r.edge_matches),
+            r.map_or(0, |r| r.surf_matches),
+            r.map_or(0, |r| r.degenerate_directions),
+            self.speed_mps,
+            self.bias_accel_mps2,
+            self.bias_gyro_radps,
+            u8::from(self.keyframe),
+            u8::from(self.loop_closed),
+        )
+    }
 }
 
 /// LIO-SAM-style lidar-inertial SLAM.
@@ -65,6 +106,8 @@ pub struct LioSam {
     last_loop_attempt_ns: i64,
     /// Newer keyframes that already have a loop factor (LIO-SAM's loopIndexContainer).
     looped: Vec<usize>,
+    /// One row per sweep when `trace_csv` is set.
+    trace: Vec<TraceRow>,
 }
 
 impl LioSam {
@@ -80,17 +123,51 @@ impl LioSam {
         );
         let features = extract(&rings, &self.cfg.features);
         let predicted = motion.at(start).unwrap_or_else(Isometry3::identity);
-        let world_from_lidar = if self.keyframes.is_empty() {
-            predicted
+        let outcome = if self.keyframes.is_empty() {
+            None
         } else {
-            match register(&features, &self.map, &predicted, &self.cfg.mapping) {
-                Some(r) => r.world_from_lidar,
-                None => predicted,
-            }
+            Some(register(
+                &features,
+                &self.map,
+                &predicted,
+                &self.cfg.mapping,
+            ))
         };
+        let world_from_lidar = match outcome {
+            Some(Ok(r)) => r.world_from_lidar,
+            _ => predicted,
+        };
+        let mut row = self.cfg.trace_csv.is_some().then(|| TraceRow {
+            stamp_ns: start,
+            outcome: match outcome {
+                None => "first",
+                Some(Ok(_)) => "registered",
+                Some(Err(refusal)) => refusal.name(),
+            },
+            registration: outcome.and_then(Result::ok),
+            scan_edges: features.edges.len(),
+            scan_surfs: features.surfs.len(),
+            speed_mps: 0.0,
+            bias_accel_mps2: 0.0,
+            bias_gyro_radps: 0.0,
+            keyframe: false,
+            loop_closed: false,
+        });
         self.after_registration(start, &world_from_lidar);
-        if self.is_keyframe(&world_from_lidar) {
+        let loops_before = self.looped.len();
+        let keyframe = self.is_keyframe(&world_from_lidar);
+        if keyframe {
             self.add_keyframe(start, world_from_lidar, features)?;
+        }
+        if let Some(mut row) = row.take() {
+            row.keyframe = keyframe;
+            row.loop_closed = self.looped.len() > loops_before;
+            if let Some((_, state)) = &self.nav {
+                row.speed_mps = state.velocity_mps.norm();
+            }
+            row.bias_accel_mps2 = self.bias.accel_mps2.norm();
+            row.bias_gyro_radps = self.bias.gyro_rps.norm();
+            self.trace.push(row);
         }
         let keyframe = self.keyframes.len() - 1;
         let kf = &self.keyframes[keyframe];
@@ -370,6 +447,7 @@ impl SlamSystem for LioSam {
             events: Vec::new(),
             last_loop_attempt_ns: i64::MIN / 2,
             looped: Vec::new(),
+            trace: Vec::new(),
             cfg,
         })
     }
@@ -420,6 +498,16 @@ impl SlamSystem for LioSam {
                 .backend
                 .write_csv(path)
                 .map_err(|e| PluginError::new(format!("profile_csv {}: {e}", path.display())))?;
+        }
+        if let Some(path) = &self.cfg.trace_csv {
+            let mut csv = String::from(TRACE_HEADER);
+            csv.push('\n');
+            for row in &self.trace {
+                csv.push_str(&row.line());
+                csv.push('\n');
+            }
+            std::fs::write(path, csv)
+                .map_err(|e| PluginError::new(format!("trace_csv {}: {e}", path.display())))?;
         }
         Ok(SlamOutput {
             trajectory,
