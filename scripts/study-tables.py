@@ -3,7 +3,8 @@
 
 Reads the run folders that the study's bench and sweep files (configs/study/) wrote under
 results/, and the paper's Table 2 (configs/hroob2021-table2.csv), and writes
-docs/hroob/tables.md. It computes nothing the host did not: every ATE figure is the one in
+docs/hroob/tables.md, with its lists of loops one per line beside it (loops-s3.csv,
+false-loops.csv). It computes nothing the host did not: every ATE figure is the one in
 a run's metrics.json, except the alignment table, whose figures come from `vinebench eval`
 (the host's evo-identical APE) on the runs' groundtruth.tum and estimate.tum. Loop events
 are the runs' events.json as the host judged them; for rejected candidates, which carry no
@@ -28,6 +29,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ["s0", "s1", "s2", "s3"]
 SYSTEMS = ["lio-sam", "staticmapping", "orbslam2", "rtabmap", "wheel-odometry", "wheel-imu-odometry"]
 STATS = ["max", "mean", "median", "rmse", "std"]
+# Where the lists too long for the page go (beside --out).
+CSV_DIR = ROOT / "docs/hroob"
 
 
 # ---------------------------------------------------------------- reading run folders
@@ -124,6 +127,42 @@ def rmse_cell(runs):
     if not runs:
         return "not run"
     return f"{pm([r.ape['rmse'] for r in runs])} ({loops_text(runs)})"
+
+
+def write_csv(path, head, rows):
+    """Writes a list too long for the page (every loop, one per line) beside it."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(head)
+        w.writerows(rows)
+
+
+ACCEPTED_HEAD = ["system", "stage", "variation", "seed", "when", "where (ground truth)",
+                 "verdict", "the system's own words"]
+FALSE_HEAD = ["study", "scenario", "system", "seed", "switched", "when",
+              "where (ground truth)", "the system's own words"]
+
+
+def accepted_summary(rows):
+    """The accepted loops counted per run: judged false by their stamps or the final
+    trajectory, and true."""
+    tally = {}
+    for system, stage, variation, seed, _, _, verdict, _ in rows:
+        k = tally.setdefault((system, stage, variation, str(seed)), [0, 0])
+        k[0 if "**false**" in verdict else 1] += 1
+    return md_table(["system", "stage", "variation", "seed", "accepted", "of them false"],
+                    [[*key, f + t, f] for key, (f, t) in tally.items()])
+
+
+def false_summary(rows):
+    """The false loops counted per study, scenario and system."""
+    tally = {}
+    for study, scenario, system, _, _, when, _, _ in rows:
+        n = int(when.split()[0]) if when.endswith("loops judged false") else 1
+        key = (study, scenario, system)
+        tally[key] = tally.get(key, 0) + n
+    return md_table(["study", "scenario", "system", "loops judged false"],
+                    [[*key, n] for key, n in tally.items()])
 
 
 def md_table(head, rows):
@@ -516,9 +555,6 @@ def finding(out, results):
         cells[(what, "1", "0")] = runs
         rows.append([what, "1", "0", rmse_cell(runs)])
     out.append(md_table(["system", "growth stage", "plant variation", "ATE RMSE (loops)"], rows))
-    out.append("### Every loop the ORB systems accepted on S3 of the paper's world\n")
-    out.append("rtabmap's are counted above: every one is a laser proximity loop between places "
-               "less than 1 m apart (§6).\n")
     rows = []
     for (label, g, v), runs in cells.items():
         if label.startswith("rtabmap"):
@@ -526,15 +562,28 @@ def finding(out, results):
         for r in runs:
             for when, where, verdict, detail in loop_lines(r, "paper"):
                 rows.append([label, g, v, r.seed, when, where, verdict, detail.replace("|", "/")])
-    out.append(md_table(["system", "stage", "variation", "seed", "when", "where (ground truth)",
-                         "verdict", "the system's own words"], rows))
+    accepted_section(out, rows)
+
+
+def accepted_section(out, rows):
+    out.append("### Every loop the ORB systems accepted on S3 of the paper's world\n")
+    out.append("rtabmap's are counted above: every one is a laser proximity loop between places "
+               "less than 1 m apart (§6). One line per loop, with when, where and the system's "
+               "own words: [loops-s3.csv](loops-s3.csv).\n")
+    write_csv(CSV_DIR / "loops-s3.csv", ACCEPTED_HEAD, rows)
+    out.append(accepted_summary(rows))
+
+
+def false_section(out, rows):
+    out.append("### Every loop judged false, any scenario, on the paper's world\n")
+    out.append("Every run of the study on the paper's world; the sweep (or bench) it belongs to "
+               "names what was switched. Counted here; the ORB systems' loops one per line in "
+               "[false-loops.csv](false-loops.csv).\n")
+    write_csv(CSV_DIR / "false-loops.csv", FALSE_HEAD, rows)
+    out.append(false_summary(rows) if rows else "None.\n")
 
 
 def false_loops(out, results):
-    out.append("### Every loop judged false, any scenario, on the paper's world\n")
-    out.append("Every run of the study on the paper's world; the sweep (or bench) it belongs to "
-               "names what was switched. The ORB systems' loops one by one, the others' "
-               "counted.\n")
     rows = []
     folders = sorted((results / "study").iterdir()) if (results / "study").exists() else []
     for folder in folders + [results / "peers-paper-world"]:
@@ -558,9 +607,7 @@ def false_loops(out, results):
                                  detail.replace("|", "/")])
         for label, n in others.items():
             rows.append([folder.name, "all", label, "", "", f"{n} loops judged false", "", ""])
-    out.append(md_table(["study", "scenario", "system", "seed", "switched", "when",
-                         "where (ground truth)", "the system's own words"], rows)
-               if rows else "None.\n")
+    false_section(out, rows)
 
 
 def rtabmap_rejections(out, results):
@@ -605,6 +652,8 @@ def main():
     ap.add_argument("--out", default=str(ROOT / "docs/hroob/tables.md"))
     a = ap.parse_args()
     results = Path(a.results)
+    global CSV_DIR
+    CSV_DIR = Path(a.out).parent
     t2 = table2(ROOT / "configs/hroob2021-table2.csv")
     out = ["# The study's tables\n",
            "Written by `python3 scripts/study-tables.py` from the runs of configs/study/ "
