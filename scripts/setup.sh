@@ -57,9 +57,15 @@ ensure_requirements() {
     fi
   done
 }
+# The environments are independent: two at a time (pip is mostly one busy core), the
+# tests' tools beside the others; a failure in either fails the setup.
+(
 ensure_requirements tests/evo/requirements.txt
 ensure_requirements tests/mcap/requirements.txt
 ensure_requirements tests/browser/requirements.txt
+) &
+tools_pid=$!
+(
 # GTSAM 4.3's wheel for the "gtsam" backend, in a venv of Debian's own interpreter: the
 # bridge library embeds /usr/lib's libpython3.11, so the packages must be built for it
 # (plugins/gtsam-backend finds this venv, or VINEBENCH_GTSAM_VENV).
@@ -79,4 +85,6 @@ python_venv() {
 python_venv python-bridge-venv tests/python-plugin/requirements.txt
 python_venv kiss-icp-venv plugins/python-bridge/adapters/kiss_icp.txt
 python_venv orbslam3-venv plugins/python-bridge/adapters/orbslam3.txt
+)
+wait "$tools_pid"
 export PATH="$vinebench_venv/bin:$PATH"

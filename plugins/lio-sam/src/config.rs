@@ -14,8 +14,9 @@ pub struct Config {
     /// Use the IMU: prediction, deskewing and preintegration factors. Off = lidar only.
     pub use_imu: bool,
     /// With the IMU on: put IMU-preintegration factors (with velocity and bias variables)
-    /// into the keyframe graph. Off: the IMU only predicts and deskews, and the graph is a
-    /// pose graph, as in LIO-SAM's released code, whose mapping graph has no IMU factors.
+    /// into the keyframe graph. Off: LIO-SAM's released structure, the keyframe graph a
+    /// pose graph and a separate IMU odometry (`imu_odometry`, the original's
+    /// `imuPreintegration.cpp`) estimating velocity and bias from every registered sweep.
     pub imu_factors: bool,
     /// Gravity, m/s² (`imuGravity`; ours is the simulator's standard gravity).
     pub gravity_mps2: f64,
@@ -158,6 +159,10 @@ pub struct MappingConfig {
     /// (`edgeFeatureMinValidNum`, `surfFeatureMinValidNum`).
     pub min_edge_points: usize,
     pub min_surf_points: usize,
+    /// Fewest correspondences (edges and planes together) an iteration needs to update the
+    /// pose (LIO-SAM's hard-coded 50 in `LMOptimization`); with fewer, the sweep keeps the
+    /// pose the iterations before reached.
+    pub min_matches: usize,
     /// Voxel leaves of the local map (`mappingCornerLeafSize`, `mappingSurfLeafSize`; the
     /// planar leaf 0.2 m rather than LIO-SAM's 0.4 m, as for the scan).
     pub corner_leaf_m: f64,
@@ -194,6 +199,7 @@ impl Default for MappingConfig {
         Self {
             min_edge_points: 10,
             min_surf_points: 100,
+            min_matches: 50,
             corner_leaf_m: 0.2,
             surf_leaf_m: 0.2,
             local_map_radius_m: 50.0,

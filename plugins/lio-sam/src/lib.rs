@@ -22,6 +22,7 @@ pub mod config;
 pub mod deskew;
 pub mod features;
 pub mod graph;
+pub mod imu_odometry;
 pub mod keyframe;
 pub mod local_map;
 pub mod loop_closure;

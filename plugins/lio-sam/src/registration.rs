@@ -18,26 +18,28 @@ use crate::local_map::LocalMap;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Registration {
     pub world_from_lidar: Isometry3<f64>,
+    /// Iterations that updated the pose.
     pub iterations: usize,
     pub edge_matches: usize,
     pub surf_matches: usize,
     /// Directions (of six) too weakly observed in the last iteration.
     pub degenerate_directions: usize,
+    /// Whether the first iteration found a direction too weakly observed: LIO-SAM's
+    /// `isDegenerate`, decided once per sweep at iteration 0 of `LMOptimization`.
+    pub degenerate: bool,
+    /// Registration stopped because an iteration matched fewer than
+    /// `cfg.min_matches` points; the pose is the one reached before it (the prediction
+    /// if at the first iteration).
+    pub few_matches: bool,
 }
 
 /// Why a sweep was not registered (its pose is then the prediction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Refusal {
-    /// The sweep has fewer edge or planar points than the minimum.
+    /// The sweep has no more edge or planar points than the minimum.
     ScanFeatures,
-    /// The local map has.
+    /// The local map is empty.
     MapFeatures,
-    /// An iteration matched fewer edges than the minimum.
-    EdgeMatches,
-    /// An iteration matched fewer planar points than the minimum.
-    SurfMatches,
-    /// The normal equations could not be solved.
-    Solve,
 }
 
 impl Refusal {
@@ -46,25 +48,27 @@ impl Refusal {
         match self {
             Self::ScanFeatures => "scan_features",
             Self::MapFeatures => "map_features",
-            Self::EdgeMatches => "edge_matches",
-            Self::SurfMatches => "surf_matches",
-            Self::Solve => "solve",
         }
     }
 }
 
-/// Refines `initial` (`world_from_lidar` at the sweep's start); refused when the sweep or
-/// the map has too few features to register.
+/// Refines `initial` (`world_from_lidar` at the sweep's start) as LIO-SAM's
+/// `scan2MapOptimization` does (`mapOptmization.cpp`): a sweep registers only if it has
+/// more edge and planar points than `min_edge_points` and `min_surf_points`
+/// (`edgeFeatureMinValidNum`, `surfFeatureMinValidNum`); an iteration with fewer than
+/// `min_matches` correspondences in all (LIO-SAM's hard-coded 50 in `LMOptimization`)
+/// leaves the pose where the iterations before it took it. Refused when the sweep has too
+/// few features or the map none.
 pub fn register(
     features: &Features,
     map: &LocalMap,
     initial: &Isometry3<f64>,
     cfg: &MappingConfig,
 ) -> Result<Registration, Refusal> {
-    if features.edges.len() < cfg.min_edge_points || features.surfs.len() < cfg.min_surf_points {
+    if features.edges.len() <= cfg.min_edge_points || features.surfs.len() <= cfg.min_surf_points {
         return Err(Refusal::ScanFeatures);
     }
-    if map.corners.len() < cfg.min_edge_points || map.surfs.len() < cfg.min_surf_points {
+    if map.corners.is_empty() && map.surfs.is_empty() {
         return Err(Refusal::MapFeatures);
     }
     let mut pose = *initial;
@@ -79,6 +83,8 @@ pub fn register(
         edge_matches: 0,
         surf_matches: 0,
         degenerate_directions: 0,
+        degenerate: false,
+        few_matches: false,
     };
     for iteration in 1..=cfg.max_iterations {
         // Lines and planes are local: search again only once the sweep has moved enough
@@ -126,21 +132,24 @@ pub fn register(
                 surf_matches += 1;
             }
         }
-        if edge_matches < cfg.min_edge_points {
-            return Err(Refusal::EdgeMatches);
+        result.edge_matches = edge_matches;
+        result.surf_matches = surf_matches;
+        // The same correspondences would be found again from the same pose: LIO-SAM's
+        // later iterations change nothing either.
+        if edge_matches + surf_matches < cfg.min_matches {
+            result.few_matches = true;
+            break;
         }
-        if surf_matches < cfg.min_surf_points {
-            return Err(Refusal::SurfMatches);
-        }
-        let step = ne.solve(cfg.degeneracy_eigenvalue).ok_or(Refusal::Solve)?;
-        pose = apply(&step.delta, &pose);
-        result = Registration {
-            world_from_lidar: pose,
-            iterations: iteration,
-            edge_matches,
-            surf_matches,
-            degenerate_directions: step.degenerate_directions,
+        let Some(step) = ne.solve(cfg.degeneracy_eigenvalue) else {
+            break;
         };
+        if iteration == 1 {
+            result.degenerate = step.degenerate_directions > 0;
+        }
+        pose = apply(&step.delta, &pose);
+        result.world_from_lidar = pose;
+        result.iterations = iteration;
+        result.degenerate_directions = step.degenerate_directions;
         // LIO-SAM stops below 0.05° and 0.05 cm.
         if converged(&step.delta, 0.05_f64.to_radians(), 5e-4) {
             break;

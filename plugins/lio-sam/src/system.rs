@@ -15,6 +15,7 @@ use crate::config::Config;
 use crate::deskew::{SweepLayout, rings};
 use crate::features::{Features, extract};
 use crate::graph::KeyframeGraph;
+use crate::imu_odometry::{Correction, ImuOdometry};
 use crate::keyframe::KeyframeView;
 use crate::local_map::LocalMap;
 use crate::loop_closure::{candidate, verify};
@@ -42,7 +43,7 @@ struct SweepRecord {
 }
 
 /// The columns of `trace_csv`, one line per sweep.
-pub const TRACE_HEADER: &str = "stamp_ns,outcome,iterations,scan_edges,scan_surfs,edge_matches,surf_matches,degenerate_directions,speed_mps,bias_accel_mps2,bias_gyro_radps,keyframe,loop";
+pub const TRACE_HEADER: &str = "stamp_ns,outcome,iterations,scan_edges,scan_surfs,edge_matches,surf_matches,degenerate_directions,degenerate,speed_mps,bias_accel_mps2,bias_gyro_radps,keyframe,loop,reset";
 
 /// One sweep of the trace (`trace_csv`).
 #[derive(Debug, Clone)]
@@ -58,13 +59,15 @@ struct TraceRow {
     bias_gyro_radps: f64,
     keyframe: bool,
     loop_closed: bool,
+    /// The IMU state failed its check and was reset at this sweep.
+    reset: bool,
 }
 
 impl TraceRow {
     fn line(&self) -> String {
         let r = self.registration;
         format!(
-            "{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{}",
+            "{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{},{}",
             self.stamp_ns,
             self.outcome,
             r.map_or(0, |r| r.iterations),
@@ -73,11 +76,13 @@ impl TraceRow {
             r.map_or(0, |r| r.edge_matches),
             r.map_or(0, |r| r.surf_matches),
             r.map_or(0, |r| r.degenerate_directions),
+            u8::from(r.is_some_and(|r| r.degenerate)),
             self.speed_mps,
             self.bias_accel_mps2,
             self.bias_gyro_radps,
             u8::from(self.keyframe),
             u8::from(self.loop_closed),
+            u8::from(self.reset),
         )
     }
 }
@@ -108,6 +113,9 @@ pub struct LioSam {
     looped: Vec<usize>,
     /// One row per sweep when `trace_csv` is set.
     trace: Vec<TraceRow>,
+    /// The original's separate IMU odometry (with the IMU on and `imu_factors` off): the
+    /// velocity and bias from every registered sweep.
+    imu_odometry: Option<ImuOdometry>,
 }
 
 impl LioSam {
@@ -141,6 +149,7 @@ impl LioSam {
             stamp_ns: start,
             outcome: match outcome {
                 None => "first",
+                Some(Ok(r)) if r.few_matches => "few_matches",
                 Some(Ok(_)) => "registered",
                 Some(Err(refusal)) => refusal.name(),
             },
@@ -152,8 +161,20 @@ impl LioSam {
             bias_gyro_radps: 0.0,
             keyframe: false,
             loop_closed: false,
+            reset: false,
         });
         self.after_registration(start, &world_from_lidar);
+        // The registration left (a direction of) the pose to the prediction.
+        let degenerate = match outcome {
+            None => false,
+            Some(Ok(r)) => r.degenerate || r.few_matches,
+            Some(Err(_)) => true,
+        };
+        if self.correct_imu_state(start, &world_from_lidar, degenerate)?
+            && let Some(row) = &mut row
+        {
+            row.reset = true;
+        }
         let loops_before = self.looped.len();
         let keyframe = self.is_keyframe(&world_from_lidar);
         if keyframe {
@@ -245,6 +266,59 @@ impl LioSam {
         self.previous.push((start_ns, *world_from_lidar));
         if self.previous.len() > VELOCITY_BASELINE {
             self.previous.remove(0);
+        }
+    }
+
+    /// With the original's separate IMU odometry: corrects it with the registered pose
+    /// and takes its velocity and bias; true if it failed its check and was reset (the
+    /// velocity is then the lidar's over the last sweeps, the bias zero).
+    fn correct_imu_state(
+        &mut self,
+        start_ns: i64,
+        world_from_lidar: &Isometry3<f64>,
+        degenerate: bool,
+    ) -> Result<bool, PluginError> {
+        let Some(estimator) = &mut self.imu_odometry else {
+            return Ok(false);
+        };
+        let Some((_, nav)) = &mut self.nav else {
+            return Ok(false);
+        };
+        let samples = estimator.last_ns().map_or_else(Vec::new, |t0| {
+            self.imu
+                .samples(t0, start_ns)
+                .into_iter()
+                .map(|(_, s)| s)
+                .collect()
+        });
+        let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
+        let correction = estimator
+            .correct(
+                start_ns,
+                &world_from_imu,
+                nav.velocity_mps,
+                degenerate,
+                samples,
+            )
+            .map_err(|e| PluginError::new(format!("IMU odometry: {e}")))?;
+        match correction {
+            Correction::State { velocity_mps, bias } => {
+                nav.velocity_mps = velocity_mps;
+                self.bias = bias;
+                Ok(false)
+            }
+            Correction::Reset => {
+                self.bias = ImuBias::default();
+                nav.velocity_mps = match self.previous.as_slice() {
+                    // The lidar's, not the IMU's: they differ by the lever arm's turn.
+                    [(t0, first), .., (t1, last)] if t1 > t0 => {
+                        (last.translation.vector - first.translation.vector)
+                            / ((t1 - t0) as f64 * 1e-9)
+                    }
+                    _ => Vector3::zeros(),
+                };
+                Ok(true)
+            }
         }
     }
 
@@ -425,6 +499,10 @@ impl SlamSystem for LioSam {
             cfg.mapping.odometry_sigma_m,
         )
         .map_err(|e| PluginError::new(format!("backend: {e}")))?;
+        let imu_odometry = (cfg.use_imu && !cfg.imu_factors)
+            .then(|| ImuOdometry::new(&cfg.backend, imu_noise))
+            .transpose()
+            .map_err(|e| PluginError::new(format!("backend: {e}")))?;
         let base_from_imu = imu.base_from_sensor();
         let base_from_lidar = lidar.base_from_sensor();
         Ok(Self {
@@ -448,6 +526,7 @@ impl SlamSystem for LioSam {
             last_loop_attempt_ns: i64::MIN / 2,
             looped: Vec::new(),
             trace: Vec::new(),
+            imu_odometry,
             cfg,
         })
     }
