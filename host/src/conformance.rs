@@ -375,8 +375,27 @@ impl Probe<'_> {
                         grid.cells.len()
                     )));
                 }
+                for e in &output.events {
+                    if e.loop_relative_pose.is_some() && e.relative_pose().is_none() {
+                        return Err(Failure(format!(
+                            "finish returned an event at {} ns whose loop_relative_pose is not finite with a unit quaternion",
+                            e.stamp_ns
+                        )));
+                    }
+                    if e.loop_matches.is_some() && e.matches().is_none() {
+                        return Err(Failure(format!(
+                            "finish returned an event at {} ns whose loop_matches are not finite",
+                            e.stamp_ns
+                        )));
+                    }
+                }
+                let with_matches = output
+                    .events
+                    .iter()
+                    .filter(|e| e.loop_matches.is_some())
+                    .count();
                 Ok(format!(
-                    "finish: {} poses, {} events",
+                    "finish: {} poses, {} events ({with_matches} with matched keypoints)",
                     output.trajectory.len(),
                     output.events.len()
                 ))

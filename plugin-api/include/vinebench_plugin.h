@@ -47,7 +47,8 @@
  *   - `vb_output` may gain fields at its end; the host zeroes it before `finish`, so a
  *     field an older plugin does not know stays 0 / NULL: absent.
  * Revision 1: everything not marked otherwise. Revision 2: `requirements_for`,
- * `create_with` with `vb_create_info` and the typed `vb_rig`.
+ * `create_with` with `vb_create_info` and the typed `vb_rig`. Revision 3: an event's
+ * `loop_matches` (in `events_toml`; no layout changed).
  */
 #ifndef VINEBENCH_PLUGIN_H
 #define VINEBENCH_PLUGIN_H
@@ -61,7 +62,7 @@ extern "C" {
 #endif
 
 #define VB_ABI_VERSION 1u
-#define VB_ABI_REVISION 2u
+#define VB_ABI_REVISION 3u
 
 /* Return values of the message callbacks and of `finish`. */
 #define VB_NO_POSE 0  /* handled; no estimate with this message */
@@ -164,8 +165,10 @@ typedef struct vb_output {
      * names, docs/plugin-contract.md "Event kinds": "loop_closure_accepted",
      * "loop_closure_rejected", "tracking_lost", "tracking_recovered"), `detail`, and for a
      * loop closure `loop_stamps_ns = [current, matched]` and optionally
-     * `loop_relative_pose = [x, y, z, qx, qy, qz, qw]` (matched_from_current); NULL or "":
-     * none. An unknown kind fails the run with a line naming it. */
+     * `loop_relative_pose = [x, y, z, qx, qy, qz, qw]` (matched_from_current) and
+     * `loop_matches = [[u_current, v_current, u_matched, v_matched], ...]` (pixels of the
+     * colour frames at the two stamps; revision 3); NULL or "": none. An unknown kind fails
+     * the run with a line naming it. */
     const char *events_toml;
 } vb_output;
 

@@ -20,7 +20,7 @@ use crate::system::{OccupancyGrid, PluginError, Requirements, SlamOutput};
 pub const ABI_VERSION: u32 = 1;
 /// The header's `VB_ABI_REVISION`: how many rounds of appended fields it has
 /// (docs/plugin-contract.md, "Versions").
-pub const ABI_REVISION: u32 = 2;
+pub const ABI_REVISION: u32 = 3;
 /// The symbol a C plugin exports.
 pub const SYMBOL: &[u8] = b"vinebench_plugin_v1\0";
 

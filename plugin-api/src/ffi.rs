@@ -306,8 +306,8 @@ mod tests {
     use super::*;
     use crate::system::EventKind;
 
-    /// Events cross the ABI as TOML: the loop stamps survive the trip, and a plugin that
-    /// sends none (built before they existed) still loads.
+    /// Events cross the ABI as TOML: the loop stamps, relative pose and matches survive the
+    /// trip, and a plugin that sends none (built before they existed) still loads.
     #[test]
     fn loop_stamps_cross_the_abi_and_may_be_absent() {
         let events = vec![
@@ -320,7 +320,8 @@ mod tests {
             .with_relative_pose(&nalgebra::Isometry3::new(
                 nalgebra::Vector3::new(0.5, -3.0, 0.01),
                 nalgebra::Vector3::new(0.0, 0.0, 0.2),
-            )),
+            ))
+            .with_matches(vec![[10.5, 20.25, 300.0, 41.75], [0.0, 479.5, 639.5, 0.0]]),
             Event::new(2_100_000_000, EventKind::TrackingLost, "no features"),
         ];
         let output = SlamOutput {
@@ -348,6 +349,11 @@ mod tests {
         assert!((pose.translation.vector - nalgebra::Vector3::new(0.5, -3.0, 0.01)).norm() < 1e-12);
         assert!((pose.rotation.angle() - 0.2).abs() < 1e-12);
         assert_eq!(back.events[1].relative_pose(), None);
+        assert_eq!(
+            back.events[0].matches(),
+            Some(&[[10.5, 20.25, 300.0, 41.75], [0.0, 479.5, 639.5, 0.0]][..])
+        );
+        assert_eq!(back.events[1].matches(), None);
 
         let old = OutputFfi {
             trajectory: RVec::new(),

@@ -136,6 +136,12 @@ pub struct Event {
     /// a lane) can be true and an aliased one false; without it, by distance alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loop_relative_pose: Option<[f64; 7]>,
+    /// A loop closure's matched keypoints between the colour frames at its two stamps, one
+    /// `[u_current, v_current, u_matched, v_matched]` per match (pixels, column then row,
+    /// origin at the top-left pixel's corner). The report draws them over the two frames.
+    /// Optional, since revision 3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loop_matches: Option<Vec<[f32; 4]>>,
 }
 
 impl Event {
@@ -147,6 +153,7 @@ impl Event {
             detail: detail.into(),
             loop_stamps_ns: None,
             loop_relative_pose: None,
+            loop_matches: None,
         }
     }
 
@@ -173,6 +180,20 @@ impl Event {
         let q = matched_from_current.rotation.coords;
         self.loop_relative_pose = Some([t.x, t.y, t.z, q.x, q.y, q.z, q.w]);
         self
+    }
+
+    /// This loop closure with the keypoints it matched, `[u_current, v_current, u_matched,
+    /// v_matched]` in pixels of the colour frames at its two stamps.
+    pub fn with_matches(mut self, matches: Vec<[f32; 4]>) -> Self {
+        self.loop_matches = Some(matches);
+        self
+    }
+
+    /// The matched keypoints, if given and every coordinate finite.
+    pub fn matches(&self) -> Option<&[[f32; 4]]> {
+        self.loop_matches
+            .as_deref()
+            .filter(|m| m.iter().flatten().all(|v| v.is_finite()))
     }
 
     /// The measured relative pose `matched_from_current`, if given and valid.

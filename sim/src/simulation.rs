@@ -179,6 +179,27 @@ impl Simulation {
         })
     }
 
+    /// The lidar sweep of the stream whose stamp is the latest at or before `stamp_ns`,
+    /// with the stream's geometry (every column from the pose at its own firing time) but
+    /// without its range noise (σ of a few cm, drawn in order from the route's start, so
+    /// that the stream's own would mean casting every sweep before): a picture of what the
+    /// sensor saw there, not the bytes a system was given. Points in the lidar frame, as
+    /// in the stream. `None` before the first complete sweep or after the route.
+    pub fn lidar_sweep_at(&self, stamp_ns: i64) -> Option<crate::sensors::LidarScan> {
+        let mut cfg = self.config.sensors.lidar.clone();
+        cfg.noise = crate::config::NoiseProfile::None;
+        let mut lidar = LidarSensor::new(&cfg, self.duration_ns(), stream(self.seed, "lidar"));
+        if stamp_ns < 0 || lidar.sweep_ns() <= 0 {
+            return None;
+        }
+        lidar.start_at((stamp_ns / lidar.sweep_ns()) as u64);
+        lidar.next_ready_ns()?;
+        match lidar.emit(&self.scene()) {
+            Message::Lidar(scan) => Some(scan),
+            _ => None,
+        }
+    }
+
     /// The time-ordered message stream of the selected sensors.
     pub fn stream(&self, sensors: SensorSet) -> Stream<'_> {
         let s = &self.config.sensors;

@@ -31,7 +31,7 @@ typedef struct {
     vb_pose *poses;
     size_t n, cap;
     float map[9];
-    char events[256];
+    char events[640];
     char error[128];
     int fault; /* 0 none, 2 error, 3 segfault */
     long after;
@@ -229,10 +229,18 @@ static int32_t finish(void *self, vb_output *out) {
         snprintf(o->error, sizeof o->error, "c-odometry: no wheel odometry received");
         return VB_ERROR;
     }
+    /* A loop candidate of the last pose to the first, refused (counted, not judged), with
+     * matched keypoints (revision 3's optional `loop_matches`): the field crosses the door. */
+    const vb_pose *first = &o->poses[0], *last = &o->poses[o->n - 1];
     snprintf(o->events, sizeof o->events,
              "[[events]]\nstamp_ns = %lld\nkind = \"tracking_recovered\"\n"
-             "detail = \"c-odometry: %zu poses from C\"\n",
-             (long long)o->poses[0].stamp_ns, o->n);
+             "detail = \"c-odometry: %zu poses from C\"\n"
+             "[[events]]\nstamp_ns = %lld\nkind = \"loop_closure_rejected\"\n"
+             "detail = \"c-odometry: last pose to first, refused\"\n"
+             "loop_stamps_ns = [%lld, %lld]\n"
+             "loop_matches = [[10.0, 20.0, 12.5, 21.0], [300.0, 200.0, 290.0, 205.5]]\n",
+             (long long)first->stamp_ns, o->n, (long long)last->stamp_ns,
+             (long long)last->stamp_ns, (long long)first->stamp_ns);
     out->trajectory = o->poses;
     out->n_trajectory = o->n;
     out->map_xyz = o->map;

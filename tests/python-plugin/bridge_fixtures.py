@@ -173,6 +173,7 @@ class Conformance(WheelOdometry):
                     "detail": f"{self.checked} other messages checked",
                     "loop_stamps_ns": [last, first],
                     "loop_relative_pose": np.linalg.inv(self.trajectory[0][1]) @ self.trajectory[-1][1],
+                    "loop_matches": np.array([[10.0, 20.0, 12.5, 21.0], [300.0, 200.0, 290.0, 205.5]]),
                 }
             ]
         out["grid"] = {

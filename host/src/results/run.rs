@@ -207,16 +207,32 @@ pub enum PairKind {
     WrongJoin,
 }
 
-/// One pair of frames: the later and the earlier place, their frames' stamps and files
-/// (relative to the run folder).
+/// One pair of places: the later and the earlier, the stamps of what the sensors saw there
+/// and the pictures of it (files relative to the run folder).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FramePair {
     pub kind: PairKind,
     /// Index into `events.json` (loops) or `joins.json`'s `wrong_joins`.
     pub index: usize,
-    /// The frames' stamps, later then earlier, nanoseconds.
+    /// The frames' (or sweeps') stamps, later then earlier, nanoseconds.
     pub stamps_ns: [i64; 2],
-    pub files: [String; 2],
+    /// The colour frames the system was given, later then earlier; empty for a run without
+    /// the camera.
+    #[serde(default)]
+    pub files: Vec<String>,
+    /// The two colour frames side by side with the keypoints the system matched between
+    /// them, where its loop event carried `loop_matches`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matches: Option<String>,
+    /// The two lidar sweeps' top views overlaid, the later one placed at the estimate's
+    /// relative pose, then at ground truth's; for runs with the lidar.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scans: Vec<String>,
+    /// For each of `scans`: the share of the later sweep's points (from above) within 0.2 m
+    /// of an earlier sweep's point. A true join overlaps about as well under the estimate as
+    /// under the truth; a false one well under the estimate only.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scan_overlap: Vec<f64>,
 }
 
 /// `frames.json`: the camera frames of a run's false loops, wrong joins and a sample of

@@ -578,6 +578,16 @@ fn a_c_plugin_runs_like_a_rust_one_and_its_faults_cost_its_own_run() {
         events.contains(&format!("c-odometry: {poses} poses from C")),
         "the C plugin's event: {events}"
     );
+    // Its refused loop candidate's matched keypoints reach events.json.
+    let events: serde_json::Value = serde_json::from_str(&events).expect("events.json");
+    let matches = events
+        .as_array()
+        .expect("a list")
+        .iter()
+        .find_map(|e| e["loop_matches"].as_array())
+        .expect("the C plugin's loop_matches");
+    assert_eq!(matches.len(), 2, "{matches:?}");
+    assert_eq!(matches[1][3], 205.5, "{matches:?}");
     assert!(
         dir("c-odometry").join("map.ply").exists(),
         "the C plugin's map"

@@ -98,6 +98,8 @@ fn one_fixture_per_door_passes_the_same_conformance_list() {
     );
     assert_all_pass("c", code, &out, &err);
     assert!(out.contains("through the c door"), "{out}");
+    // Its finish's loop brought its matched keypoints through the TOML of `events_toml`.
+    assert!(out.contains("2 events (1 with matched keypoints)"), "{out}");
     // requirements_for (revision 2) asked for every sensor, so the route fed them all.
     assert!(
         out.contains("[wheel_odometry, imu, lidar, scan2d, rgbd]"),
@@ -118,12 +120,17 @@ fn one_fixture_per_door_passes_the_same_conformance_list() {
     let (code, out, err) = check(file.to_str().expect("utf-8"), &[]);
     assert_all_pass("python", code, &out, &err);
     assert!(out.contains("py-conformance"), "{out}");
-    // The route's finish brought the Python grid and the loop with its relative pose.
+    // The route's finish brought the Python grid and the loop with its relative pose and
+    // its matched keypoints.
     let route = verdicts(&out)
         .into_iter()
         .find(|(_, n, _)| n == "route")
         .expect("route");
-    assert!(route.2.contains("1 events"), "{}", route.2);
+    assert!(
+        route.2.contains("1 events (1 with matched keypoints)"),
+        "{}",
+        route.2
+    );
 }
 
 /// The fault plugin fails the checks its faults break, naming why: a NaN pose on the route,

@@ -46,6 +46,54 @@ fn a_true_loop_in_s4_is_accepted_and_lowers_the_error() {
         final_rmse < online_rmse,
         "the loop's correction did not lower the error"
     );
+
+    // The true loop carries the keypoints it matched, inside the rig camera's frames, and
+    // the evaluation drew them over the two frames it joined (`frames/`).
+    let events = json(&with.join("events.json"));
+    let event = events
+        .as_array()
+        .expect("a list")
+        .iter()
+        .find(|e| e["kind"] == "loop_closure_accepted" && e["true_loop"] == true)
+        .expect("a true accepted loop");
+    let matches = event["loop_matches"].as_array().expect("loop_matches");
+    let (w, h) = (640.0, 480.0);
+    assert!(matches.len() >= 20, "{} matches", matches.len());
+    for m in matches {
+        let m: Vec<f64> = m
+            .as_array()
+            .expect("4 numbers")
+            .iter()
+            .map(|v| v.as_f64().expect("a number"))
+            .collect();
+        assert!(
+            m.len() == 4
+                && m[0] < w
+                && m[2] < w
+                && m[1] < h
+                && m[3] < h
+                && m.iter().all(|v| *v >= 0.0),
+            "a match outside the 640x480 frames: {m:?}"
+        );
+    }
+    let frames = json(&with.join("frames.json"));
+    let pair = frames["pairs"]
+        .as_array()
+        .expect("pairs")
+        .iter()
+        .find(|p| p["kind"] == "true_loop")
+        .expect("the true loop's pictures");
+    assert_eq!(pair["stamps_ns"], event["loop_stamps_ns"], "{pair}");
+    let picture = with.join(pair["matches"].as_str().expect("the matches' picture"));
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(&picture).expect("the matches' PNG"),
+    ));
+    let info = decoder.read_info().expect("a PNG").info().clone();
+    assert_eq!(
+        (info.width, info.height),
+        (1280, 480),
+        "two frames side by side"
+    );
 }
 
 /// How often, along S1's first lane (a frame every 0.5 s, 0.25 m apart at full speed, from

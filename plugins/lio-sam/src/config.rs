@@ -14,9 +14,12 @@ pub struct Config {
     /// Use the IMU: prediction, deskewing and preintegration factors. Off = lidar only.
     pub use_imu: bool,
     /// With the IMU on: put IMU-preintegration factors (with velocity and bias variables)
-    /// into the keyframe graph. Off: LIO-SAM's released structure, the keyframe graph a
-    /// pose graph and a separate IMU odometry (`imu_odometry`, the original's
-    /// `imuPreintegration.cpp`) estimating velocity and bias from every registered sweep.
+    /// into the keyframe graph. Off (the default): LIO-SAM's released structure, the
+    /// keyframe graph a pose graph and a separate IMU odometry (`imu_odometry`, the
+    /// original's `imuPreintegration.cpp`) estimating velocity and bias from every
+    /// registered sweep. With LIO-SAM's published leaves the keyframe-IMU structure
+    /// diverged on the paper's world in one seed of three on S0-S2; the original's held
+    /// (docs/notes/lio-sam-vs-original.md §4).
     pub imu_factors: bool,
     /// Gravity, m/s² (`imuGravity`; ours is the simulator's standard gravity).
     pub gravity_mps2: f64,
@@ -45,7 +48,7 @@ impl Default for Config {
         Self {
             deskew: true,
             use_imu: true,
-            imu_factors: true,
+            imu_factors: false,
             gravity_mps2: 9.80665,
             imu: ImuNoiseConfig::default(),
             features: FeatureConfig::default(),
@@ -132,8 +135,9 @@ pub struct FeatureConfig {
     pub sectors: usize,
     /// Edge points per sector.
     pub edges_per_sector: usize,
-    /// Voxel leaf for the planar points of a scan (`odometrySurfLeafSize`; LIO-SAM's 0.4 m
-    /// is made for streets: vine rows need 0.2 m, which halves the ATE on S0).
+    /// Voxel leaf for the planar points of a scan (`odometrySurfLeafSize` 0.4 m, LIO-SAM's
+    /// published value; 0.2 m gives a third of the ATE on our world, the same on the
+    /// paper's: docs/notes/lio-sam-vs-original.md §4).
     pub surf_leaf_m: f64,
 }
 
@@ -146,7 +150,7 @@ impl Default for FeatureConfig {
             surf_threshold: 0.1,
             sectors: 6,
             edges_per_sector: 20,
-            surf_leaf_m: 0.2,
+            surf_leaf_m: 0.4,
         }
     }
 }
@@ -163,8 +167,8 @@ pub struct MappingConfig {
     /// pose (LIO-SAM's hard-coded 50 in `LMOptimization`); with fewer, the sweep keeps the
     /// pose the iterations before reached.
     pub min_matches: usize,
-    /// Voxel leaves of the local map (`mappingCornerLeafSize`, `mappingSurfLeafSize`; the
-    /// planar leaf 0.2 m rather than LIO-SAM's 0.4 m, as for the scan).
+    /// Voxel leaves of the local map (`mappingCornerLeafSize` 0.2 m, `mappingSurfLeafSize`
+    /// 0.4 m: LIO-SAM's published values).
     pub corner_leaf_m: f64,
     pub surf_leaf_m: f64,
     /// Keyframes within this radius of the newest make the local map
@@ -201,7 +205,7 @@ impl Default for MappingConfig {
             min_surf_points: 100,
             min_matches: 50,
             corner_leaf_m: 0.2,
-            surf_leaf_m: 0.2,
+            surf_leaf_m: 0.4,
             local_map_radius_m: 50.0,
             keyframe_density_m: 2.0,
             recent_s: 10.0,
@@ -231,8 +235,8 @@ pub struct LoopConfig {
     /// (`historyKeyframeSearchNum`).
     pub submap_keyframes: usize,
     /// ICP fitness (mean squared nearest-neighbour distance, m²) a closure must beat
-    /// (`historyKeyframeFitnessScore` 0.3, for 0.4 m clouds; the score scales with the
-    /// square of the point spacing, so our 0.2 m clouds use about a quarter: 0.1).
+    /// (`historyKeyframeFitnessScore` 0.3, for LIO-SAM's 0.4 m clouds; the score scales
+    /// with the square of the point spacing: with 0.2 m leaves, about a quarter, 0.1).
     pub max_fitness: f64,
     /// Minimum time between two attempts (`loopClosureFrequency` 1 Hz).
     pub min_interval_s: f64,
@@ -247,7 +251,7 @@ impl Default for LoopConfig {
             search_radius_m: 15.0,
             min_age_s: 30.0,
             submap_keyframes: 25,
-            max_fitness: 0.1,
+            max_fitness: 0.3,
             min_interval_s: 1.0,
             robust_scale: 1.0,
         }

@@ -46,6 +46,9 @@ pub enum Verdict {
         /// How far the correction moved the current keyframe, m and rad.
         correction_m: f64,
         correction_rad: f64,
+        /// The loop's matches seen in both keyframes, `[u, v]` in the current keyframe then
+        /// in the matched one (pixels): what the report draws over the two frames.
+        keypoints: Vec<[f32; 4]>,
     },
     Rejected {
         current: usize,
@@ -95,6 +98,7 @@ impl LoopClosing {
                         projected: found.loop_matches.len(),
                         correction_m: (after - before).norm(),
                         correction_rad: before_r.angle_to(&map.keyframes[kf].pose().rotation),
+                        keypoints: found.keypoints,
                     });
                     return verdicts;
                 }
@@ -180,6 +184,9 @@ struct Found {
     inliers: usize,
     loop_matches: BTreeMap<usize, usize>,
     loop_points: Vec<usize>,
+    /// The loop matches whose map point the candidate keyframe itself observes, as pixel
+    /// pairs (current, then candidate).
+    keypoints: Vec<[f32; 4]>,
 }
 
 /// Horn's closed form (J. Opt. Soc. Am. A 4(4), 1987) through the SVD of the
@@ -369,11 +376,20 @@ fn verify(
             cfg.min_projected_matches
         ));
     }
+    let keypoints = loop_matches
+        .iter()
+        .filter_map(|(&i, &p)| {
+            let j = *map.points[map.resolve(p)?].observations.get(&c)?;
+            let (a, b) = (&f1.keys[i], &map.keyframes[c].frame.keys[j]);
+            Some([a.u, a.v, b.u, b.v])
+        })
+        .collect();
     Ok(Found {
         corrected,
         inliers: result.inlier_count,
         loop_matches,
         loop_points,
+        keypoints,
     })
 }
 

@@ -69,6 +69,7 @@ impl OrbSlam2 {
                 projected,
                 correction_m,
                 correction_rad,
+                keypoints,
             } => Event::loop_closure(
                 stamp_ns,
                 EventKind::LoopClosureAccepted,
@@ -79,7 +80,8 @@ impl OrbSlam2 {
                     self.stamp_of(matched),
                     correction_rad.to_degrees()
                 ),
-            ),
+            )
+            .with_matches(keypoints),
             Verdict::Rejected {
                 current,
                 matched,

@@ -32,7 +32,9 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
    `events` (dicts with `stamp_ns`, `kind` — "loop_closure_accepted",
    "loop_closure_rejected", "tracking_lost" or "tracking_recovered" — `detail`, and for a
    loop closure `loop_stamps_ns` = [current, matched] and optionally `loop_relative_pose`,
-   matched_from_current as [x, y, z, qx, qy, qz, qw] or a 4x4), optional `map` ((N, 3)
+   matched_from_current as [x, y, z, qx, qy, qz, qw] or a 4x4, and `loop_matches`, the
+   matched keypoints as an (N, 4) array of [u_current, v_current, u_matched, v_matched]
+   pixels of the colour frames at the two stamps, which the report draws), optional `map` ((N, 3)
    points) and optional `grid` ({"resolution": metres, "origin": (x, y, yaw), "cells": an
    (rows, columns) array of -1 unknown or 0..100 occupancy, row 0 at the origin}).
 
@@ -54,7 +56,7 @@ class SlamSystem:
     is optional): every method the bridge may call, with what it does when absent."""
 
     #: The contract revision this class was written for (docs/plugin-contract.md).
-    API_REVISION = 2
+    API_REVISION = 3
 
     @staticmethod
     def requirements(params):

@@ -225,6 +225,24 @@ def _relative_pose(value):
     )
 
 
+def _matches(value):
+    """A loop's `loop_matches` as little-endian float32 bytes, 4 numbers a match (u, v in the
+    current frame, u, v in the matched one, pixels); None stays None."""
+    if value is None:
+        return None
+    m = np.asarray(value, dtype=np.float64)
+    if m.size == 0:
+        m = m.reshape(0, 4)
+    if m.ndim != 2 or m.shape[1] != 4:
+        raise ValueError(
+            f"finish(): an event's loop_matches is an (N, 4) array of "
+            f"[u_current, v_current, u_matched, v_matched], got shape {m.shape}"
+        )
+    if not np.isfinite(m).all():
+        raise ValueError("finish(): an event's loop_matches are not all finite")
+    return np.ascontiguousarray(m.astype("<f4")).tobytes()
+
+
 def _grid(value):
     """An occupancy grid dict as (resolution, (x, y, yaw), width, height, cells bytes)."""
     if value is None:
@@ -269,14 +287,19 @@ def finish(obj):
         kind = e["kind"]
         if kind not in EVENT_KINDS:
             raise ValueError(f"finish(): unknown event kind {kind!r} (one of {', '.join(EVENT_KINDS)})")
-        unknown = set(e) - {"stamp_ns", "kind", "detail", "loop_stamps_ns", "loop_relative_pose"}
+        unknown = set(e) - {
+            "stamp_ns", "kind", "detail", "loop_stamps_ns", "loop_relative_pose", "loop_matches"
+        }
         if unknown:
             raise ValueError(f"finish(): unknown event keys {sorted(unknown)}")
         stamps = e.get("loop_stamps_ns")
         if stamps is not None:
             stamps = (int(stamps[0]), int(stamps[1]))
         relative = _relative_pose(e.get("loop_relative_pose"))
-        events.append((int(e["stamp_ns"]), kind, str(e.get("detail", "")), stamps, relative))
+        matches = _matches(e.get("loop_matches"))
+        events.append(
+            (int(e["stamp_ns"]), kind, str(e.get("detail", "")), stamps, relative, matches)
+        )
     points = out.get("map")
     if points is not None:
         points = np.ascontiguousarray(np.asarray(points, dtype="<f4").reshape(-1, 3)).tobytes()

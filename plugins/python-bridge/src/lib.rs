@@ -546,10 +546,13 @@ impl SlamSystem for PythonPlugin {
 type Relative = Option<Vec<f64>>;
 /// A grid as the bridge hands it over: resolution, origin, width, height, cells.
 type Grid = Option<(f64, (f64, f64, f64), u32, u32, Vec<u8>)>;
+/// A loop's matched keypoints as the bridge hands them over: little-endian f32 bytes, four
+/// a match.
+type Matches = Option<Vec<u8>>;
 /// What `bridge.py`'s `finish` returns, extracted: trajectory, events, map bytes, grid.
 type Finished = (
     Vec<Option<(i64, [f64; 12])>>,
-    Vec<(i64, String, String, Option<(i64, i64)>, Relative)>,
+    Vec<(i64, String, String, Option<(i64, i64)>, Relative, Matches)>,
     Option<Vec<u8>>,
     Grid,
 );
@@ -566,7 +569,7 @@ fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamO
         .collect::<Result<Vec<_>, _>>()?;
     let events = events
         .into_iter()
-        .map(|(stamp, kind, detail, stamps, relative)| {
+        .map(|(stamp, kind, detail, stamps, relative, matches)| {
             let kind = EventKind::from_name(&kind).map_err(|e| e.0)?;
             let mut event = match stamps {
                 Some((a, b)) if kind.is_loop_closure() => {
@@ -589,6 +592,29 @@ fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamO
                 if event.relative_pose().is_none() {
                     return Err(format!(
                         "the event at {stamp} ns has a loop_relative_pose that is not finite with a unit quaternion"
+                    ));
+                }
+            }
+            if let Some(bytes) = matches {
+                if bytes.len() % 16 != 0 {
+                    return Err(format!(
+                        "the event at {stamp} ns has loop_matches of {} bytes, not 4 float32 a match",
+                        bytes.len()
+                    ));
+                }
+                event.loop_matches = Some(
+                    bytes
+                        .chunks_exact(16)
+                        .map(|c| {
+                            std::array::from_fn(|i| {
+                                f32::from_le_bytes(c[i * 4..i * 4 + 4].try_into().expect("4 bytes"))
+                            })
+                        })
+                        .collect(),
+                );
+                if event.matches().is_none() {
+                    return Err(format!(
+                        "the event at {stamp} ns has loop_matches that are not finite"
                     ));
                 }
             }
@@ -673,7 +699,20 @@ pub fn fuzz_python_output(data: &[u8]) {
                 _ => Some(3),
             }
             .map(|n| (0..n).map(|_| f64v()).collect());
-            (k as i64, kind, String::new(), Some((1, 0)), relative)
+            // No matches, or some bytes: whole matches of 16, or a ragged end.
+            let matches = (f64v().to_bits() % 2 == 1).then(|| {
+                (0..(f64v().to_bits() % 40))
+                    .map(|_| (f64v().to_bits() & 0xff) as u8)
+                    .collect()
+            });
+            (
+                k as i64,
+                kind,
+                String::new(),
+                Some((1, 0)),
+                relative,
+                matches,
+            )
         })
         .collect();
     let map = Some(

@@ -69,6 +69,18 @@ impl LidarSensor {
         }
     }
 
+    /// The next sweep emitted is the `k`-th (stamp `k` sweep periods). The range noise,
+    /// drawn in order from the stream's start, is then not the stream's: for a noise-free
+    /// sensor only (`Simulation::lidar_sweep_at`).
+    pub(crate) fn start_at(&mut self, k: u64) {
+        self.k = k;
+    }
+
+    /// The sweep period, ns.
+    pub fn sweep_ns(&self) -> i64 {
+        self.sweep_ns
+    }
+
     fn stamp(&self, k: u64) -> i64 {
         k as i64 * self.sweep_ns
     }

@@ -560,3 +560,52 @@ fn a_camera_frame_rendered_alone_is_the_streams_frame() {
     assert!(sim.rgbd_frame_at(-1).is_none());
     assert!(sim.rgbd_frame_at(sim.duration_ns() + 1).is_none());
 }
+
+/// A lidar sweep cast on its own (`Simulation::lidar_sweep_at`, what an evaluation shows of
+/// a lidar system's loop) is the stream's sweep at that stamp without its range noise: with
+/// the noise off, point for point the same; with it on, the same beams within a few σ.
+#[test]
+fn a_lidar_sweep_cast_alone_is_the_streams_sweep_without_noise() {
+    let sweeps = |config: &SimConfig| -> (Simulation, Vec<LidarScan>) {
+        let sim = Simulation::new(config, "s0", 3).expect("S0 builds");
+        let scans = sim
+            .stream(only("lidar"))
+            .filter_map(|m| match m {
+                Message::Lidar(s) => Some(s),
+                _ => None,
+            })
+            .take(4)
+            .collect();
+        (sim, scans)
+    };
+    let mut quiet = SimConfig::default();
+    quiet.sensors.lidar.noise = NoiseProfile::None;
+    let (sim, scans) = sweeps(&quiet);
+    let alone = sim.lidar_sweep_at(scans[3].stamp_ns + 1).expect("sweep 3");
+    assert_eq!(alone.stamp_ns, scans[3].stamp_ns);
+    assert_eq!(alone.points, scans[3].points, "noise off: the same points");
+
+    let (sim, scans) = sweeps(&SimConfig::default());
+    let alone = sim.lidar_sweep_at(scans[2].stamp_ns).expect("sweep 2");
+    let sigma = SimConfig::default().sensors.lidar.range_sigma_m as f32;
+    let range = |p: &sim::sensors::LidarPoint| (p.x * p.x + p.y * p.y + p.z * p.z).sqrt();
+    assert!(!alone.points.is_empty());
+    // The noisy stream may lose or gain a point at the range limits; pair them by beam.
+    let key = |p: &sim::sensors::LidarPoint| (p.ring, (p.time_s * 1e7).round() as i64);
+    let noisy: std::collections::BTreeMap<_, _> =
+        scans[2].points.iter().map(|p| (key(p), range(p))).collect();
+    let mut paired = 0;
+    for p in &alone.points {
+        if let Some(r) = noisy.get(&key(p)) {
+            assert!((r - range(p)).abs() < 6.0 * sigma, "{r} vs {}", range(p));
+            paired += 1;
+        }
+    }
+    assert!(
+        paired * 100 >= alone.points.len() * 99,
+        "{paired} of {}",
+        alone.points.len()
+    );
+    assert!(sim.lidar_sweep_at(-1).is_none());
+    assert!(sim.lidar_sweep_at(sim.duration_ns() + 1).is_none());
+}

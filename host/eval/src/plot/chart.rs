@@ -576,7 +576,7 @@ fn plot_error<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) ->
 }
 
 /// 8-bit RGB PNG, default compression: the same pixels give the same bytes.
-pub(crate) fn encode_png(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, EvalError> {
+pub fn encode_png(width: u32, height: u32, rgb: &[u8]) -> Result<Vec<u8>, EvalError> {
     let mut out = Vec::new();
     let mut encoder = png::Encoder::new(&mut out, width, height);
     encoder.set_color(png::ColorType::Rgb);

@@ -7,7 +7,7 @@ mod chart;
 mod colormap;
 mod trajectory;
 
-pub use chart::{Chart, ColorBar, Height, Mark, Swatch};
+pub use chart::{Chart, ColorBar, Height, Mark, Swatch, encode_png};
 pub use colormap::viridis;
 pub use trajectory::{error_colored_path, plot_trajectories};
 

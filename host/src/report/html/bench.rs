@@ -432,8 +432,7 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
                 PairKind::TrueLoop => format!("true loop (events.json #{})", pair.index),
                 PairKind::WrongJoin => format!("wrong join #{} of the final map", pair.index),
             };
-            let _ = write!(h, "<figure class=\"pair\">");
-            for file in &pair.files {
+            let img = |h: &mut String, file: &str| {
                 let _ = write!(
                     h,
                     "<img src=\"{}/{}/{}\" alt=\"{}\" loading=\"lazy\">",
@@ -442,14 +441,56 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
                     esc(file),
                     esc(file)
                 );
-            }
-            let _ = writeln!(
-                h,
-                "<figcaption>{}: the colour frames the system was given at {:.2} s (left) and {:.2} s (right), rendered again from the run's world and seed.</figcaption></figure>",
-                esc(&what),
+            };
+            let (later_s, earlier_s) = (
                 pair.stamps_ns[0] as f64 * 1e-9,
-                pair.stamps_ns[1] as f64 * 1e-9
+                pair.stamps_ns[1] as f64 * 1e-9,
             );
+            if !pair.files.is_empty() {
+                let _ = write!(h, "<figure class=\"pair\">");
+                for file in &pair.files {
+                    img(&mut h, file);
+                }
+                let _ = writeln!(
+                    h,
+                    "<figcaption>{}: the colour frames the system was given at {later_s:.2} s (left) and {earlier_s:.2} s (right), rendered again from the run's world and seed.</figcaption></figure>",
+                    esc(&what)
+                );
+            }
+            if let Some(file) = &pair.matches {
+                let _ = write!(h, "<figure class=\"pair\">");
+                img(&mut h, file);
+                let _ = writeln!(
+                    h,
+                    "<figcaption>{}: the keypoints the system matched between the two frames (its event's loop_matches).</figcaption></figure>",
+                    esc(&what)
+                );
+            }
+            if !pair.scans.is_empty() {
+                let _ = write!(h, "<figure class=\"pair\">");
+                for file in &pair.scans {
+                    img(&mut h, file);
+                }
+                let overlap = if pair.scan_overlap.len() == pair.scans.len() {
+                    let shares: Vec<String> = pair
+                        .scan_overlap
+                        .iter()
+                        .map(|v| format!("{:.0} %", 100.0 * v))
+                        .collect();
+                    format!(
+                        " Share of the later sweep's points within 0.2 m of the earlier's: {}.",
+                        shares.join(" and ")
+                    )
+                } else {
+                    String::new()
+                };
+                let _ = writeln!(
+                    h,
+                    "<figcaption>{}: the lidar sweeps at {later_s:.2} s (orange) and {earlier_s:.2} s (blue) from above, the later placed at the estimate's relative pose (left, where the run has one) and at ground truth's (right); cast again from the run's world without range noise, ground and points beyond 25 m left out.{}</figcaption></figure>",
+                    esc(&what),
+                    esc(&overlap)
+                );
+            }
         }
         h.push_str("</div>\n");
     }
