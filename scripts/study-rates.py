@@ -90,14 +90,24 @@ def main():
         frames = {}
         if (run / "frames.json").exists():
             for pair in json.loads((run / "frames.json").read_text())["pairs"]:
-                frames[(pair["kind"], pair["index"])] = [
-                    (run / f).relative_to(out.parent).as_posix() for f in pair["files"]
-                ]
+                rel = lambda f: (run / f).relative_to(out.parent).as_posix()  # noqa: E731
+                links = [f"[{w}]({rel(f)})" for w, f in zip(("later", "earlier"), pair.get("files", []))]
+                if pair.get("matches"):
+                    links.append(f"[matches]({rel(pair['matches'])})")
+                for w, f in zip(("sweeps at the estimate", "sweeps at the truth"), pair.get("scans", [])):
+                    links.append(f"[{w}]({rel(f)})")
+                if all((run / f).exists() for f in pair.get("files", [])):
+                    frames[(pair["kind"], pair["index"])] = links
+        for figure in ("route", "error"):
+            if (run / f"{figure}.svg").exists():
+                figures = frames.setdefault("figures", [])
+                figures.append(f"[{figure}]({(run / f'{figure}.svg').relative_to(out.parent).as_posix()})")
         judged = json.loads((run / "events.json").read_text())
         for i, e in enumerate(judged):
             if e.get("kind") == "loop_closure_accepted" and e.get("true_loop") is False:
                 events.append((key, cell["seed"], "false loop", e["stamp_ns"] * 1e-9,
-                               e.get("judged_by", ""), frames.get(("false_loop", i))))
+                               e.get("judged_by", ""),
+                               frames.get(("false_loop", i), []) + frames.get("figures", [])))
         if (run / "joins.json").exists():
             j = json.loads((run / "joins.json").read_text())
             for i, w in enumerate(j["wrong_joins"]):
@@ -106,7 +116,7 @@ def main():
                           f"{w['earlier_s'][0]:.1f}–{w['earlier_s'][1]:.1f} s, "
                           f"{w['truth_distance_m']:.2f} m apart in truth")
                 events.append((key, cell["seed"], what, w["pair_s"][0], detail,
-                               frames.get(("wrong_join", i))))
+                               frames.get(("wrong_join", i), []) + frames.get("figures", [])))
     lines = [
         "# The central finding as rates (issue 43)",
         "",
@@ -141,7 +151,7 @@ def main():
         if detail:
             text += f" ({detail})"
         if files:
-            text += f": [later]({files[0]}), [earlier]({files[1]})"
+            text += ": " + ", ".join(files)
         lines.append(text)
     fails = [f"- {' / '.join(map(str, k))}: {r}" for k, rs in sorted(failed.items()) for r in rs]
     if fails:

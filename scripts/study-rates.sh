@@ -9,13 +9,15 @@
 #   bash scripts/study-rates.sh --save       keep the finished runs' small files in git
 #   bash scripts/study-rates.sh --table      write docs/hroob/rates.md from what is kept
 # What --save kept in docs/hroob/rates/runs/ (each run's cell.json, metrics.json,
-# joins.json, judged events.json, frames.json and the frames of its false loops and wrong
-# joins) is what counts: a sweep runs only the seeds not kept yet, on any machine, and a
+# joins.json, judged events.json, frames.json, and for a run with a false loop or a wrong
+# join its figures from `vinebench report --figures`: route.svg, error.svg and the pictures
+# of those in frames/) is what counts: a sweep runs only the seeds not kept yet, on any machine, and a
 # sweep stopped midway resumes from its folder (results/rates/<sweep>/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 results=results/rates
 kept=docs/hroob/rates/runs
+vb=target/release/vinebench
 all=(orbslam2-s3 orbslam2-s3-decide orbslam2-s3-nofence orbslam2-s3-nofence-decide orbslam2-s1
      orbslam3-s3 orbslam3-s3-decide orbslam3-s3-nofence orbslam3-s3-nofence-decide orbslam3-s1)
 
@@ -30,10 +32,10 @@ save() {
         for f in cell.json metrics.json joins.json events.json frames.json; do
             [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
         done
-        if [ -d "$dir/frames" ]; then
-            mkdir -p "$dest/frames"
-            # The false loops' and wrong joins' frames; the true sample stays behind.
-            find "$dir/frames" -name 'false-loop-*' -o -name 'wrong-join-*' | xargs -r cp -t "$dest/frames/"
+        # A run with a false loop or a wrong join keeps its figures (route.svg, error.svg)
+        # and the pictures of those (frames/); the true loops' sample stays behind.
+        if python3 -c 'import json,sys; m=json.load(open(sys.argv[1])); sys.exit(0 if m["loops"]["accepted_false"] or (m.get("joins") or {}).get("wrong_joins") else 1)' "$dir/metrics.json" 2>/dev/null; then
+            "$vb" report "$dir" --figures "$dest" --label "${sweep%%-*}" > /dev/null
         fi
     done
     echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"
@@ -46,7 +48,6 @@ esac
 
 source scripts/setup.sh
 cargo build --release
-vb=target/release/vinebench
 [ -f target/orbslam3-vocabulary.txt ] || target/release/orbslam2-vocabulary \
     --export-dbow2-text plugins/orbslam2/vocabulary/vineyard-k10l6.dbow target/orbslam3-vocabulary.txt
 

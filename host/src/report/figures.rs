@@ -187,6 +187,129 @@ pub(super) fn error_chart(title: &str, detail: &RunDetail) -> Option<Chart> {
     Some(chart)
 }
 
+/// One run's figures for a document (`vinebench report --figures OUT RUN`), written into
+/// `out`: `route.svg` (the aligned estimate over ground truth with its accepted loops and
+/// the final map's wrong joins, as the report draws a scenario), `error.svg` (the APE
+/// translation along the route, each accepted loop a vertical line at its time, grey if
+/// true, red if false, each wrong join's later stretch an orange bar along the top), and
+/// `frames/`: the pictures of its false loops and wrong joins (`frames.json`). Returns the
+/// files written.
+pub fn write_run_figures(
+    run: &super::load::LoadedRun,
+    out: &Path,
+) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    use super::plot::{FALSE_LOOP, TRUE_LOOP, Track, WRONG_JOIN, scenario_chart};
+    let detail = run.detail.as_ref().with_context(|| {
+        format!(
+            "{}: the run did not finish ({}): no figures",
+            run.dir.display(),
+            run.record.status.text()
+        )
+    })?;
+    std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
+    let mut written = Vec::new();
+    let (scenario, plugin) = (&run.record.scenario, &run.record.plugin);
+
+    let segments: Vec<super::plot::LoopSegment> = detail
+        .loops
+        .iter()
+        .filter_map(|l| l.segment)
+        .chain(detail.wrong_join_segments())
+        .collect();
+    let estimate = decimate(&run.record.estimate_xy, MAX_LINE_POINTS);
+    let track = Track {
+        plugin,
+        plugin_index: 0,
+        outcome: Ok((estimate.as_slice(), segments.as_slice())),
+    };
+    let mut route = scenario_chart(
+        scenario,
+        &decimate(&detail.groundtruth_xy, MAX_LINE_POINTS),
+        &[track],
+    );
+    route.title = format!("{scenario}, {plugin}: aligned estimate over ground truth");
+    let path = out.join("route.svg");
+    route
+        .save(&path, super::plot::WIDTH_PX)
+        .with_context(|| path.display().to_string())?;
+    written.push(path);
+
+    let title = format!("{scenario}, {plugin}: APE translation along the route");
+    let mut error = error_chart(&title, detail)
+        .with_context(|| format!("{}: no associated poses", run.dir.display()))?;
+    let t0 = detail.stamps_s[0];
+    let top = error.y_range.map_or(1.0, |r| r.1);
+    let (mut true_loops, mut false_loops) = (Vec::new(), Vec::new());
+    for l in &detail.loops {
+        let x = l.stamp_ns as f64 * 1e-9 - t0;
+        match l.true_loop {
+            Some(true) => true_loops.push([(x, 0.0), (x, top)]),
+            Some(false) => false_loops.push([(x, 0.0), (x, top)]),
+            None => {}
+        }
+    }
+    let joins: Vec<[(f64, f64); 2]> = detail.joins.as_ref().map_or_else(Vec::new, |j| {
+        j.report
+            .wrong_joins
+            .iter()
+            .map(|e| {
+                [
+                    (e.later_s[0] - t0, 0.97 * top),
+                    (e.later_s[1] - t0, 0.97 * top),
+                ]
+            })
+            .collect()
+    });
+    for (segments, color, width_px, label) in [
+        (true_loops, TRUE_LOOP, 1, "true loop closures"),
+        (false_loops, FALSE_LOOP, 2, "false loop closures"),
+        (
+            joins,
+            WRONG_JOIN,
+            6,
+            "wrong joins of the final map (its later stretch)",
+        ),
+    ] {
+        if !segments.is_empty() {
+            error.legend.push((
+                Swatch::Line { color, width_px: 2 },
+                format!("{label} ({})", segments.len()),
+            ));
+            error.marks.push(Mark::Segments {
+                segments,
+                color,
+                width_px,
+            });
+        }
+    }
+    let path = out.join("error.svg");
+    error
+        .save(&path, super::plot::WIDTH_PX)
+        .with_context(|| path.display().to_string())?;
+    written.push(path);
+
+    if let Some(frames) = &detail.frames {
+        for pair in frames
+            .pairs
+            .iter()
+            .filter(|p| p.kind != crate::results::PairKind::TrueLoop)
+        {
+            let files = pair.files.iter().chain(&pair.matches).chain(&pair.scans);
+            for file in files {
+                let (from, to) = (run.dir.join(file), out.join(file));
+                if let Some(parent) = to.parent() {
+                    std::fs::create_dir_all(parent)
+                        .with_context(|| parent.display().to_string())?;
+                }
+                std::fs::copy(&from, &to)
+                    .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
+                written.push(to);
+            }
+        }
+    }
+    Ok(written)
+}
+
 /// A binary PGM (`P5`, maxval ≤ 255): width, height, pixels row by row from the top.
 fn read_pgm(path: &Path) -> anyhow::Result<(usize, usize, Vec<u8>)> {
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;

@@ -15,7 +15,7 @@ use serde::de::{Deserializer, MapAccess, Visitor};
 
 use super::RunRecord;
 use super::plot::LoopSegment;
-use crate::results::{RunFolder, RunStatus};
+use crate::results::{RunFolder, RunStatus, files};
 
 /// A JSON object's entries in file order (serde_json's map sorts its keys).
 struct Ordered<T>(Vec<(String, T)>);
@@ -184,6 +184,39 @@ impl BenchResults {
             runs,
         })
     }
+}
+
+/// One run folder read back on its own (`vinebench report --figures`): its scenario from
+/// `run.toml`, its status from `status.txt`, its name `label` or else its plugin's.
+pub fn load_run_folder(dir: &Path, label: Option<&str>) -> anyhow::Result<LoadedRun> {
+    #[derive(Deserialize)]
+    struct RunToml {
+        scenario: String,
+        plugin: PluginToml,
+    }
+    #[derive(Deserialize)]
+    struct PluginToml {
+        name: Option<String>,
+    }
+    let folder = RunFolder::new(dir);
+    let text = folder
+        .read_run_toml()
+        .with_context(|| format!("{}: no run.toml (not a run folder?)", dir.display()))?;
+    let run_toml: RunToml = toml::from_str(&text)
+        .with_context(|| format!("{}: unreadable", folder.path(files::RUN).display()))?;
+    let status_path = folder.path(files::STATUS);
+    let status = std::fs::read_to_string(&status_path)
+        .with_context(|| format!("{}: cannot read", status_path.display()))?;
+    let run = IndexedRun {
+        scenario: run_toml.scenario,
+        plugin: label
+            .map(str::to_owned)
+            .or(run_toml.plugin.name)
+            .unwrap_or_else(|| "system".to_owned()),
+        status: RunStatus::from_text(status.trim()),
+        max_time_s: None,
+    };
+    load_run(&run, &folder)
 }
 
 fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {

@@ -17,7 +17,7 @@
 //! folders; it reads them through [`crate::results`] and runs nothing.
 
 mod csv;
-mod figures;
+pub mod figures;
 pub mod html;
 mod json;
 mod latex;

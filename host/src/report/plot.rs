@@ -15,10 +15,10 @@ pub(super) const WIDTH_PX: u32 = 1000;
 const GROUND_TRUTH: Rgb = [0, 0, 0];
 /// Loop closures: grey when true (thin, under the estimates' colours, none of which is
 /// grey), red and wider when false, so a false loop stands out.
-const TRUE_LOOP: Rgb = [110, 110, 110];
-const FALSE_LOOP: Rgb = [230, 0, 30];
+pub(super) const TRUE_LOOP: Rgb = [110, 110, 110];
+pub(super) const FALSE_LOOP: Rgb = [230, 0, 30];
 /// Wrong joins of the final map: orange, between the two true places they join.
-const WRONG_JOIN: Rgb = [245, 130, 0];
+pub(super) const WRONG_JOIN: Rgb = [245, 130, 0];
 /// Okabe & Ito's colour-blind-safe palette (without black, which is the ground truth),
 /// yellow last as it is faint on white; plugin `i` gets colour `i % 7`.
 const PALETTE: [Rgb; 7] = [

@@ -8,7 +8,7 @@ use serde_json::Value;
 
 use super::bench::run_bench;
 use super::python::{fixture_paths, python_entry, venv};
-use crate::common::{json, text};
+use crate::common::{json, text, vinebench};
 
 /// Runs `bridge_fixtures.Merger` on `scenario` cut at `max_time_s`, one run per (label,
 /// params); returns each run's folder.
@@ -210,5 +210,51 @@ fn a_camera_runs_wrong_join_gets_its_two_frames_in_the_report() {
         html.contains("s2/camera-merge/frames/wrong-join-0-later.png")
             && html.contains("wrong join #0 of the final map"),
         "the report shows the pair"
+    );
+
+    // `report --figures` writes the run's figures for a document: its route with the wrong
+    // join, its error along the route with the join's later stretch marked, and the pair.
+    let figures = dir.path().join("figures");
+    let out = vinebench(&[
+        "report",
+        run.to_str().expect("utf-8"),
+        "--figures",
+        figures.to_str().expect("utf-8"),
+        "--label",
+        "merger",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let listed = text(&out.stdout);
+    assert_eq!(
+        listed.lines().count(),
+        4,
+        "route, error and the two frames: {listed}"
+    );
+    let route = std::fs::read_to_string(figures.join("route.svg")).expect("route.svg");
+    assert!(
+        route.contains("s2, merger") && route.contains("wrong joins of the final map"),
+        "the route names the run and draws its wrong join"
+    );
+    let error = std::fs::read_to_string(figures.join("error.svg")).expect("error.svg");
+    assert!(
+        error.contains("wrong joins of the final map (its later stretch) (1)"),
+        "the error along the route marks the wrong join"
+    );
+    assert_eq!(
+        std::fs::read(figures.join("frames/wrong-join-0-later.png")).expect("copied"),
+        std::fs::read(run.join("frames/wrong-join-0-later.png")).expect("the frame"),
+    );
+    // A folder that is not a run's is named.
+    let bad = vinebench(&[
+        "report",
+        dir.path().to_str().expect("utf-8"),
+        "--figures",
+        figures.to_str().expect("utf-8"),
+    ]);
+    assert!(!bad.status.success());
+    assert!(
+        text(&bad.stderr).contains("no run.toml"),
+        "{}",
+        text(&bad.stderr)
     );
 }
