@@ -138,8 +138,8 @@ pub struct Event {
     pub loop_relative_pose: Option<[f64; 7]>,
     /// A loop closure's matched keypoints between the colour frames at its two stamps, one
     /// `[u_current, v_current, u_matched, v_matched]` per match (pixels, column then row,
-    /// origin at the top-left pixel's corner). The report draws them over the two frames.
-    /// Optional, since revision 3.
+    /// (0, 0) the centre of the top-left pixel, as OpenCV has it). The report draws them
+    /// over the two frames. Optional, since revision 3.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub loop_matches: Option<Vec<[f32; 4]>>,
 }

@@ -22,7 +22,7 @@ pub mod world;
 
 pub use config::SimConfig;
 pub use error::SimError;
-pub use simulation::{SensorSet, Simulation, Stream};
+pub use simulation::{SensorSet, Simulation, Stream, Surface};
 
 /// The default configuration file, embedded: `configs/world.toml`.
 pub const DEFAULT_CONFIG_TOML: &str = include_str!("../../configs/world.toml");

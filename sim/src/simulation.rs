@@ -179,6 +179,31 @@ impl Simulation {
         })
     }
 
+    /// What pixel `(u, v)` of the colour camera (pixel centres at integers, as
+    /// [`crate::camera::Intrinsics`] has them) shows in the frame taken at `stamp_ns`: the
+    /// first surface on its ray, a fence panel told apart from the trellis posts whose wood
+    /// it shares; `None` where the ray meets nothing (sky or background). Lets an
+    /// evaluation say what a system's matched keypoints lay on.
+    pub fn surface_at_pixel(&self, stamp_ns: i64, u: f64, v: f64) -> Option<Surface> {
+        let cfg = &self.config.sensors.camera;
+        let intrinsics = crate::camera::Intrinsics::from_config(cfg);
+        let world_from_optical = self.trajectory.pose(stamp_ns)
+            * cfg.mount.base_from_sensor()
+            * crate::camera::camera_from_optical();
+        let [x, y, z] = intrinsics.ray(u, v);
+        let dir = (world_from_optical.rotation * nalgebra::Vector3::new(x, y, z)).normalize();
+        let origin = nalgebra::Point3::from(world_from_optical.translation.vector.cast::<f32>());
+        let hit = self
+            .caster
+            .cast(&origin, &dir.cast::<f32>(), 0.0, f32::MAX)?;
+        let triangle = hit.triangle as usize;
+        Some(if self.world.fence_triangles.contains(&triangle) {
+            Surface::Fence
+        } else {
+            Surface::Material(self.world.mesh.materials[triangle])
+        })
+    }
+
     /// The lidar sweep of the stream whose stamp is the latest at or before `stamp_ns`,
     /// with the stream's geometry (every column from the pose at its own firing time) but
     /// without its range noise (σ of a few cm, drawn in order from the route's start, so
@@ -246,6 +271,23 @@ impl Simulation {
         Stream {
             scene: self.scene(),
             sensors: list,
+        }
+    }
+}
+
+/// What a camera pixel shows ([`Simulation::surface_at_pixel`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Surface {
+    /// A panel of the fence around the block.
+    Fence,
+    Material(crate::world::Material),
+}
+
+impl Surface {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fence => "fence",
+            Self::Material(m) => m.name(),
         }
     }
 }

@@ -224,6 +224,11 @@ pub struct FramePair {
     /// them, where its loop event carried `loop_matches`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub matches: Option<String>,
+    /// What the matched keypoints lie on, as the simulator's rays through them say: the
+    /// number of matches per `"later/earlier"` surface pair (`"fence/fence"`, `"leaf/leaf"`,
+    /// `"post/leaf"`, ...; `"sky"` where a ray meets nothing).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub matched_surfaces: BTreeMap<String, usize>,
     /// The two lidar sweeps' top views overlaid, the later one placed at the estimate's
     /// relative pose, then at ground truth's; for runs with the lidar.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

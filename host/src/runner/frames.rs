@@ -160,6 +160,7 @@ pub fn write_frames(run: &RunFolder, judged: &[JudgedEvent], joins: &Joins) -> a
             stamps_ns: w.stamps,
             files: Vec::new(),
             matches: None,
+            matched_surfaces: std::collections::BTreeMap::new(),
             scans: Vec::new(),
             scan_overlap: Vec::new(),
         };
@@ -178,6 +179,8 @@ pub fn write_frames(run: &RunFolder, judged: &[JudgedEvent], joins: &Joins) -> a
                     let file = format!("{stem}-matches.png");
                     draw_matches(&dir.join(&file), &later.image, &earlier.image, matches)?;
                     pair.matches = Some(relative(file));
+                    pair.matched_surfaces =
+                        matched_surfaces(&simulation, [later.stamp_ns, earlier.stamp_ns], matches);
                 }
             }
         }
@@ -226,6 +229,27 @@ pub fn write_frames(run: &RunFolder, judged: &[JudgedEvent], joins: &Joins) -> a
         }
     }
     run.write_frames(&frames)
+}
+
+/// What each match's two keypoints lie on, counted by `"later/earlier"` surface pair: the
+/// first surface on the colour camera's ray through each keypoint, in the frames at
+/// `stamps_ns` (later, earlier).
+fn matched_surfaces(
+    simulation: &sim::Simulation,
+    stamps_ns: [i64; 2],
+    matches: &[[f32; 4]],
+) -> std::collections::BTreeMap<String, usize> {
+    let mut counts = std::collections::BTreeMap::new();
+    for m in matches {
+        let [later, earlier] =
+            [(stamps_ns[0], m[0], m[1]), (stamps_ns[1], m[2], m[3])].map(|(stamp, u, v)| {
+                simulation
+                    .surface_at_pixel(stamp, f64::from(u), f64::from(v))
+                    .map_or("sky", sim::Surface::name)
+            });
+        *counts.entry(format!("{later}/{earlier}")).or_insert(0) += 1;
+    }
+    counts
 }
 
 /// The estimate's pose nearest `stamp_ns`, if within [`ESTIMATE_NEAREST_S`].
@@ -341,8 +365,8 @@ fn draw_matches(
         for s in 0..=steps {
             let t = s as f64 / steps as f64;
             put(
-                (a.0 + t * (b.0 - a.0)).floor() as i64,
-                (a.1 + t * (b.1 - a.1)).floor() as i64,
+                (a.0 + t * (b.0 - a.0)).round() as i64,
+                (a.1 + t * (b.1 - a.1)).round() as i64,
                 c,
             );
         }
@@ -350,8 +374,8 @@ fn draw_matches(
             for d in 0..24 {
                 let angle = std::f64::consts::TAU * f64::from(d) / 24.0;
                 put(
-                    (x + 3.0 * angle.cos()).floor() as i64,
-                    (y + 3.0 * angle.sin()).floor() as i64,
+                    (x + 3.0 * angle.cos()).round() as i64,
+                    (y + 3.0 * angle.sin()).round() as i64,
                     c,
                 );
             }

@@ -94,6 +94,19 @@ fn a_true_loop_in_s4_is_accepted_and_lowers_the_error() {
         (1280, 480),
         "two frames side by side"
     );
+    // What they lie on, every match counted once: on our world (no fence), the plants,
+    // posts, wires and ground.
+    let on = pair["matched_surfaces"]
+        .as_object()
+        .expect("matched_surfaces");
+    assert_eq!(
+        on.values()
+            .map(|n| n.as_u64().expect("a count"))
+            .sum::<u64>(),
+        matches.len() as u64,
+        "{on:?}"
+    );
+    assert!(!on.keys().any(|k| k.contains("fence")), "{on:?}");
 }
 
 /// How often, along S1's first lane (a frame every 0.5 s, 0.25 m apart at full speed, from

@@ -41,6 +41,9 @@ pub struct World {
     pub posts: Vec<Point3<f64>>,
     /// Ground centres of the fence panels.
     pub fence: Vec<Point3<f64>>,
+    /// The fence panels' triangles in `mesh` (they follow the block's): a hit there is on
+    /// the fence, whose wood shares the trellis posts' material.
+    pub fence_triangles: Range<usize>,
     /// Extent of the modelled ground: (min, max) in x and y.
     pub extent: ([f64; 2], [f64; 2]),
 }
@@ -71,6 +74,7 @@ impl World {
         let mut world = Self::build_on(vineyard, terrain_cfg, terrain, world_seed);
         let [length, thickness, height] = fence.panel_size_m;
         let mut textures = stream(world_seed, "fence/texture");
+        let first_fence_triangle = world.mesh.triangles.len();
         for &[x, y, yaw_deg] in &fence.panels {
             let foot = Point3::new(x, y, world.terrain.height(x, y));
             // Drawn only when asked, so a fence of identical panels leaves every other
@@ -89,6 +93,7 @@ impl World {
             );
             world.fence.push(foot);
         }
+        world.fence_triangles = first_fence_triangle..world.mesh.triangles.len();
         world
     }
 
@@ -167,6 +172,7 @@ impl World {
             plants,
             posts,
             fence: Vec::new(),
+            fence_triangles: 0..0,
             extent,
         }
     }
@@ -270,6 +276,7 @@ impl World {
             plants,
             posts,
             fence: Vec::new(),
+            fence_triangles: 0..0,
             extent,
         }
     }

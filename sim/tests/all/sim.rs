@@ -609,3 +609,34 @@ fn a_lidar_sweep_cast_alone_is_the_streams_sweep_without_noise() {
     assert!(sim.lidar_sweep_at(-1).is_none());
     assert!(sim.lidar_sweep_at(sim.duration_ns() + 1).is_none());
 }
+
+/// A pixel's surface (`Simulation::surface_at_pixel`, what an evaluation says a matched
+/// keypoint lay on): a fence panel put 3 m ahead of the robot's start, across its view, is
+/// what the centre pixel sees, told apart from the posts whose wood it shares; without the
+/// panel the same pixel sees something else; a pixel far above the horizon sees nothing.
+#[test]
+fn a_pixel_sees_the_fence_panel_put_in_front_of_the_camera() {
+    let plain = SimConfig::default();
+    let sim = Simulation::new(&plain, "s0", 0).expect("S0 builds");
+    let start = sim.trajectory.pose(0);
+    let ahead = start * Point3::new(3.0, 0.0, 0.0);
+    let yaw = start.rotation.euler_angles().2.to_degrees() + 90.0;
+    let (cx, cy) = {
+        let c = &plain.sensors.camera;
+        (0.5 * (c.width as f64 - 1.0), 0.5 * (c.height as f64 - 1.0))
+    };
+    let without = sim.surface_at_pixel(0, cx, cy);
+    assert_ne!(without, Some(sim::Surface::Fence));
+
+    let mut fenced = plain.clone();
+    fenced.fence.panels = vec![[ahead.x, ahead.y, yaw]];
+    fenced.fence.panel_size_m = [4.0, 0.15, 3.0];
+    let sim = Simulation::new(&fenced, "s0", 0).expect("S0 with a panel builds");
+    assert_eq!(sim.surface_at_pixel(0, cx, cy), Some(sim::Surface::Fence));
+    assert_eq!(
+        sim.surface_at_pixel(0, cx, -100_000.0),
+        None,
+        "straight up: the sky"
+    );
+    assert_eq!(sim::Surface::Fence.name(), "fence");
+}

@@ -460,10 +460,22 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
             if let Some(file) = &pair.matches {
                 let _ = write!(h, "<figure class=\"pair\">");
                 img(&mut h, file);
+                let mut on: Vec<(&String, &usize)> = pair.matched_surfaces.iter().collect();
+                on.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+                let on: Vec<String> = on.iter().map(|(k, n)| format!("{k} {n}")).collect();
+                let on = if on.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        " What they lie on (later/earlier, by the simulator's rays): {}.",
+                        on.join(", ")
+                    )
+                };
                 let _ = writeln!(
                     h,
-                    "<figcaption>{}: the keypoints the system matched between the two frames (its event's loop_matches).</figcaption></figure>",
-                    esc(&what)
+                    "<figcaption>{}: the keypoints the system matched between the two frames (its event's loop_matches).{}</figcaption></figure>",
+                    esc(&what),
+                    esc(&on)
                 );
             }
             if !pair.scans.is_empty() {
