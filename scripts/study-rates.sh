@@ -33,9 +33,14 @@ save() {
             [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
         done
         # A run with a false loop or a wrong join keeps its figures (route.svg, error.svg)
-        # and the pictures of those (frames/); the true loops' sample stays behind.
+        # and, half size each way, the pictures of its first false loop (and its matches),
+        # else of its first wrong join; the rest stay in the results folder.
         if python3 -c 'import json,sys; m=json.load(open(sys.argv[1])); sys.exit(0 if m["loops"]["accepted_false"] or (m.get("joins") or {}).get("wrong_joins") else 1)' "$dir/metrics.json" 2>/dev/null; then
-            "$vb" report "$dir" --figures "$dest" --label "${sweep%%-*}" > /dev/null
+            "$vb" report "$dir" --figures "$dest" --label "${sweep%%-*}" --frame-scale 2 > /dev/null
+            first=$(cd "$dest/frames" 2>/dev/null && ls false-loop-*-later.png wrong-join-*-later.png 2>/dev/null | head -1 || true)
+            if [ -n "$first" ]; then
+                find "$dest/frames" -type f ! -name "${first%-later.png}-*" -delete
+            fi
         fi
     done
     echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"

@@ -20,12 +20,16 @@ pub struct ReportArgs {
     /// With --figures: the system's name in the titles (default: the plugin's).
     #[arg(long, requires = "figures")]
     pub label: Option<String>,
+    /// With --figures: the frames made this many times smaller each way (a box filter), for
+    /// documents kept in git.
+    #[arg(long, requires = "figures", default_value_t = 1)]
+    pub frame_scale: u32,
 }
 
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     if let Some(out) = &args.figures {
         let run = crate::report::load::load_run_folder(&args.dir, args.label.as_deref())?;
-        for path in crate::report::figures::write_run_figures(&run, out)? {
+        for path in crate::report::figures::write_run_figures(&run, out, args.frame_scale)? {
             crate::out!("{}", path.display());
         }
         return Ok(());

@@ -197,7 +197,12 @@ pub(super) fn error_chart(title: &str, detail: &RunDetail) -> Option<Chart> {
 pub fn write_run_figures(
     run: &super::load::LoadedRun,
     out: &Path,
+    frame_scale: u32,
 ) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    anyhow::ensure!(
+        frame_scale >= 1,
+        "--frame-scale {frame_scale}: a factor of 1 or more"
+    );
     use super::plot::{FALSE_LOOP, TRUE_LOOP, Track, WRONG_JOIN, scenario_chart};
     let detail = run.detail.as_ref().with_context(|| {
         format!(
@@ -301,13 +306,52 @@ pub fn write_run_figures(
                     std::fs::create_dir_all(parent)
                         .with_context(|| parent.display().to_string())?;
                 }
-                std::fs::copy(&from, &to)
-                    .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
+                if frame_scale == 1 {
+                    std::fs::copy(&from, &to).with_context(|| {
+                        format!("copying {} to {}", from.display(), to.display())
+                    })?;
+                } else {
+                    let png = shrink_png(&from, frame_scale)
+                        .with_context(|| format!("shrinking {}", from.display()))?;
+                    std::fs::write(&to, png).with_context(|| to.display().to_string())?;
+                }
                 written.push(to);
             }
         }
     }
     Ok(written)
+}
+
+/// An 8-bit RGB PNG made `factor` times smaller each way, every output pixel the mean of
+/// its `factor` x `factor` block (the last partial row and column dropped).
+fn shrink_png(path: &Path, factor: u32) -> anyhow::Result<Vec<u8>> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path)?));
+    let mut reader = decoder.read_info()?;
+    let mut buf = vec![0; reader.output_buffer_size().context("an image too large")?];
+    let info = reader.next_frame(&mut buf)?;
+    anyhow::ensure!(
+        info.color_type == png::ColorType::Rgb && info.bit_depth == png::BitDepth::Eight,
+        "not an 8-bit RGB PNG"
+    );
+    let (w, h, f) = (info.width as usize, info.height as usize, factor as usize);
+    let (ow, oh) = (w / f, h / f);
+    anyhow::ensure!(
+        ow > 0 && oh > 0,
+        "{w}x{h} is smaller than the factor {factor}"
+    );
+    let mut out = vec![0u8; 3 * ow * oh];
+    for y in 0..oh {
+        for x in 0..ow {
+            for c in 0..3 {
+                let sum: u32 = (0..f)
+                    .flat_map(|dy| (0..f).map(move |dx| (dx, dy)))
+                    .map(|(dx, dy)| u32::from(buf[3 * ((y * f + dy) * w + x * f + dx) + c]))
+                    .sum();
+                out[3 * (y * ow + x) + c] = ((sum + (f * f / 2) as u32) / (f * f) as u32) as u8;
+            }
+        }
+    }
+    Ok(eval::plot::encode_png(ow as u32, oh as u32, &out)?)
 }
 
 /// A binary PGM (`P5`, maxval ≤ 255): width, height, pixels row by row from the top.

@@ -244,6 +244,32 @@ fn a_camera_runs_wrong_join_gets_its_two_frames_in_the_report() {
         std::fs::read(figures.join("frames/wrong-join-0-later.png")).expect("copied"),
         std::fs::read(run.join("frames/wrong-join-0-later.png")).expect("the frame"),
     );
+    // Frames half the size each way for a document, every pixel the mean of its block.
+    let small = dir.path().join("small");
+    let out = vinebench(&[
+        "report",
+        run.to_str().expect("utf-8"),
+        "--figures",
+        small.to_str().expect("utf-8"),
+        "--frame-scale",
+        "2",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let decoder = png::Decoder::new(std::io::Cursor::new(
+        std::fs::read(small.join("frames/wrong-join-0-later.png")).expect("the small frame"),
+    ));
+    let mut reader = decoder.read_info().expect("a PNG");
+    let mut buf = vec![0; reader.output_buffer_size().expect("size")];
+    let info = reader.next_frame(&mut buf).expect("its pixels");
+    assert_eq!((info.width, info.height), (320, 240));
+    let mean =
+        |pixels: &[u8]| pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / pixels.len() as f64;
+    assert!(
+        (mean(&buf) - mean(&images[0])).abs() < 1.0,
+        "the same picture, smaller: mean {} against {}",
+        mean(&buf),
+        mean(&images[0])
+    );
     // A folder that is not a run's is named.
     let bad = vinebench(&[
         "report",
