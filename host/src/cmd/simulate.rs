@@ -1,5 +1,5 @@
 //! `vinebench simulate`: drive a scenario, stream the selected sensors, optionally dump them,
-//! and report the real-time factor.
+//! and report the real-time factor and what each sensor costs.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -54,18 +54,29 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     );
     bar.set_prefix(format!("simulate {}", args.sim.scenario));
     let mut counts = std::collections::BTreeMap::<&'static str, u64>::new();
+    // Wall seconds spent making each sensor's messages, and writing them with --out.
+    let mut costs = std::collections::BTreeMap::<&'static str, [f64; 2]>::new();
     let mut lidar_points = 0u64;
-    for message in sim
-        .stream(sensors)
-        .take_while(|m| m.stamp_ns() <= duration_ns)
-    {
+    let mut stream = sim.stream(sensors);
+    loop {
+        let made = Instant::now();
+        let Some(message) = stream.next() else {
+            break;
+        };
+        if message.stamp_ns() > duration_ns {
+            break;
+        }
+        let cost = costs.entry(message.sensor()).or_default();
+        cost[0] += made.elapsed().as_secs_f64();
         *counts.entry(message.sensor()).or_default() += 1;
         if let sim::sensors::Message::Lidar(scan) = &message {
             lidar_points += scan.points.len() as u64;
         }
         bar.set_position(message.stamp_ns().max(0) as u64 / 1_000_000);
         if let Some(d) = dump.as_mut() {
+            let written = Instant::now();
             d.write(&message)?;
+            cost[1] += written.elapsed().as_secs_f64();
         }
     }
     bar.finish_and_clear();
@@ -82,6 +93,23 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         crate::dump::path_length(&sim),
         summary.join(", ")
     );
+    // What each sensor of the rig costs: wall seconds per simulated second to make its
+    // messages (and to write them), the simulator's parallel work included.
+    let per_sensor: Vec<String> = costs
+        .iter()
+        .map(|(sensor, [make, write])| {
+            if args.out.is_some() {
+                format!(
+                    "{sensor} {:.3} + {:.3} writing",
+                    make / simulated,
+                    write / simulated
+                )
+            } else {
+                format!("{sensor} {:.3}", make / simulated)
+            }
+        })
+        .collect();
+    crate::out!("cost, wall s per simulated s: {}", per_sensor.join(", "));
     crate::out!("wall time: {wall:.2} s");
     crate::out!("real-time factor: {:.2}", simulated / wall);
     Ok(())

@@ -53,6 +53,29 @@ fn simulate_dumps_every_sensor_and_reports_the_real_time_factor() {
         .parse()
         .expect("a number");
     assert!(factor > 0.0, "real-time factor {factor}");
+    // Each sensor's cost, making and writing, in wall seconds per simulated second: every
+    // sensor asked for, and together no more than the whole run took.
+    let cost_line = stdout(&o)
+        .lines()
+        .find_map(|l| {
+            l.strip_prefix("cost, wall s per simulated s: ")
+                .map(str::to_owned)
+        })
+        .expect("a cost line");
+    let mut total = 0.0;
+    for sensor in ["gt", "imu", "odom", "lidar", "scan_front", "scan_back"] {
+        let entry = cost_line
+            .split(", ")
+            .find(|e| e.split(' ').next() == Some(sensor))
+            .unwrap_or_else(|| panic!("{sensor} in '{cost_line}'"));
+        let numbers: Vec<f64> = entry.split(' ').filter_map(|w| w.parse().ok()).collect();
+        assert_eq!(numbers.len(), 2, "making and writing: {entry}");
+        total += numbers.iter().sum::<f64>();
+    }
+    assert!(
+        total > 0.0 && total <= 1.0 / factor + 0.01,
+        "{cost_line} against 1/{factor}"
+    );
 
     // 3 s at 100 Hz from t = 0 inclusive.
     let gt = lines(&out.join("groundtruth.tum"));
