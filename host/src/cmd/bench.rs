@@ -233,9 +233,22 @@ fn bench_in(
         runs: todo.iter().map(|&i| plan.runs[i].clone()).collect(),
         ..plan.clone()
     };
-    // Weighed by route length: the runs of a bench differ in length more than in speed.
-    let weights = crate::runner::route_seconds(&sub).ok();
-    let progress = Progress::new(sub.runs.len(), weights, false);
+    // Each run's predicted duration: its route's length times its system's cost in the
+    // previous results at `out`, if any (Progress says how the estimate uses them).
+    let predicted = crate::runner::route_seconds(&sub).ok().map(|route_s| {
+        let costs = previous_costs(out);
+        let fallback = if costs.is_empty() {
+            1.0
+        } else {
+            costs.values().sum::<f64>() / costs.len() as f64
+        };
+        sub.runs
+            .iter()
+            .zip(route_s)
+            .map(|(run, s)| s * costs.get(&run.label).copied().unwrap_or(fallback))
+            .collect()
+    });
+    let progress = Progress::new(sub.runs.len(), predicted, sub.jobs, false);
     let ran = if sub.runs.is_empty() {
         Vec::new()
     } else {
@@ -290,6 +303,37 @@ fn bench_in(
 
 /// After Ctrl-C: keeps the partial folder if any run finished (the same command resumes
 /// it), else removes it; the error says which.
+/// Each system's wall seconds per simulated second in the results already at `out` (a
+/// previous bench of the same name: `out/<scenario>/<label>/timing.json`), all of
+/// its runs there (their wall time over their simulated time); empty where there are none.
+fn previous_costs(out: &Path) -> std::collections::BTreeMap<String, f64> {
+    let mut sums: std::collections::BTreeMap<String, (f64, f64)> = Default::default();
+    let Ok(scenarios) = std::fs::read_dir(out) else {
+        return Default::default();
+    };
+    for scenario in scenarios.flatten() {
+        let Ok(runs) = std::fs::read_dir(scenario.path()) else {
+            continue;
+        };
+        for run in runs.flatten() {
+            let folder = crate::results::RunFolder::new(run.path());
+            if let Ok(Some(t)) = folder.read_timing()
+                && t.simulated_s > 0.0
+                && t.wall_s.is_finite()
+            {
+                let entry = sums
+                    .entry(run.file_name().to_string_lossy().into_owned())
+                    .or_default();
+                entry.0 += t.wall_s;
+                entry.1 += t.simulated_s;
+            }
+        }
+    }
+    sums.into_iter()
+        .map(|(label, (wall, simulated))| (label, wall / simulated))
+        .collect()
+}
+
 fn interrupted(staging: Staging, out: &Path, outcomes: &[RunOutcome]) -> anyhow::Error {
     let finished = outcomes
         .iter()

@@ -10,15 +10,23 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::results::{RunOutcome, RunStatus};
 
-/// Counts finished runs and says so.
+/// Counts finished runs and says so, with an estimate of the time left.
+///
+/// The estimate: every run has a predicted duration (its route's simulated seconds times
+/// its system's wall seconds per simulated second in the previous results, where there
+/// are any, else times 1); the finished runs' measured durations (`timing.json`'s
+/// `wall_s`) against their predictions scale the predictions of the rest, which share
+/// `jobs` slots: time left = max(sum / jobs, the longest). Runs measured before predict
+/// themselves from the first finished run on; a route length alone cannot tell a camera
+/// system's hour from a baseline's seconds.
 #[derive(Debug)]
 pub struct Progress {
     total: usize,
     done: AtomicUsize,
-    /// Each run's weight in the estimate of the time left (its route's simulated seconds),
-    /// and the weight of those done.
-    weights: Vec<f64>,
-    done_weight: Mutex<f64>,
+    predicted: Vec<f64>,
+    jobs: usize,
+    /// Which runs have ended, and the sums of their predicted and measured durations.
+    ended: Mutex<(Vec<bool>, f64, f64)>,
     started: Instant,
     /// On a terminal: the bar, or nothing when the runner draws its own per run.
     bar: Option<ProgressBar>,
@@ -27,9 +35,9 @@ pub struct Progress {
 
 impl Progress {
     /// A bar with ETA on a terminal (`own_bar`; else the runner's bars show there), one
-    /// line per finished run elsewhere. `weights`: each run's share of the work (the time
-    /// left is estimated as the time taken so far per unit of weight done); `None`: equal.
-    pub fn new(total: usize, weights: Option<Vec<f64>>, own_bar: bool) -> Self {
+    /// line per finished run elsewhere. `predicted`: each run's predicted duration, seconds
+    /// (`None`: equal); `jobs`: the runs that run at once.
+    pub fn new(total: usize, predicted: Option<Vec<f64>>, jobs: usize, own_bar: bool) -> Self {
         let terminal = std::io::stderr().is_terminal();
         let bar = (terminal && own_bar).then(|| {
             let bar = ProgressBar::new(total as u64);
@@ -45,25 +53,67 @@ impl Progress {
         Self {
             total,
             done: AtomicUsize::new(0),
-            weights: weights.unwrap_or_else(|| vec![1.0; total]),
-            done_weight: Mutex::new(0.0),
+            predicted: predicted.unwrap_or_else(|| vec![1.0; total]),
+            jobs: jobs.max(1),
+            ended: Mutex::new((vec![false; total], 0.0, 0.0)),
             started: Instant::now(),
             bar,
             terminal,
         }
     }
 
-    /// Run `index`, described by `what` (`s0/lio-sam`, a sweep's cell), has ended.
+    /// The time left after run `index` ended having taken `measured_s` (its `wall_s`;
+    /// `None`: unknown, its prediction stands), seconds.
+    fn time_left(&self, index: usize, measured_s: Option<f64>, elapsed_s: f64, k: usize) -> f64 {
+        let mut ended = self.ended.lock().expect("no panics while holding the lock");
+        let (flags, predicted_sum, measured_sum) = &mut *ended;
+        // An index out of range or already ended (runs that weigh the same, reported in
+        // any order): the first run not yet ended.
+        let index = if flags.get(index) == Some(&false) {
+            index
+        } else {
+            flags.iter().position(|f| !f).unwrap_or(index)
+        };
+        if let Some(flag) = flags.get_mut(index) {
+            *flag = true;
+        }
+        let predicted = self.predicted.get(index).copied().unwrap_or(0.0);
+        if let Some(m) = measured_s.filter(|m| m.is_finite() && *m > 0.0)
+            && predicted > 0.0
+        {
+            *predicted_sum += predicted;
+            *measured_sum += m;
+        }
+        let left: Vec<f64> = flags
+            .iter()
+            .zip(&self.predicted)
+            .filter(|(ended, _)| !**ended)
+            .map(|(_, p)| *p)
+            .collect();
+        if *predicted_sum <= 0.0 {
+            // Nothing measured: the time so far per run, as many runs again.
+            return elapsed_s / k as f64 * left.len() as f64 / self.jobs as f64;
+        }
+        let scale = *measured_sum / *predicted_sum;
+        let sum: f64 = left.iter().sum();
+        let longest = left.iter().copied().fold(0.0, f64::max);
+        scale * (sum / self.jobs as f64).max(longest)
+    }
+
+    /// Run `index`, described by `what` (`s0/lio-sam`, a sweep's cell), has ended; an
+    /// index past the end: whichever run (they weigh the same).
     pub fn finished(&self, index: usize, what: &str, outcome: &RunOutcome) {
         let k = self.done.fetch_add(1, Ordering::SeqCst) + 1;
-        let done = {
-            let mut w = self
-                .done_weight
-                .lock()
-                .expect("no panics while holding the lock");
-            *w += self.weights.get(index).copied().unwrap_or(0.0);
-            *w
-        };
+        let measured = outcome
+            .folder
+            .read_timing()
+            .ok()
+            .flatten()
+            .map(|t| t.wall_s);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let eta = self.time_left(index, measured, elapsed, k);
+        // Never "-0 s".
+        let eta = if eta > 0.0 { eta } else { 0.0 };
         let result = match &outcome.status {
             RunStatus::Ok => match outcome.folder.read_metrics() {
                 Ok(m) => format!("ok, ATE RMSE {:.3} m", m.ape.rmse),
@@ -79,13 +129,6 @@ impl Progress {
             }
             None if self.terminal => {}
             None => {
-                let elapsed = self.started.elapsed().as_secs_f64();
-                let all: f64 = self.weights.iter().sum();
-                let eta = if done > 0.0 {
-                    elapsed / done * (all - done).max(0.0)
-                } else {
-                    elapsed / k as f64 * (self.total - k) as f64
-                };
                 crate::out!("{line} (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
             }
         }
@@ -102,5 +145,42 @@ impl Progress {
         if let Some(bar) = &self.bar {
             bar.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two slots; runs predicted 10, 10, 100 and 100 s. The first, predicted 10 s, took
+    /// 20 s: every prediction doubles; 210 s of work is left on two slots, the longest run
+    /// 100 s: 2 * max(210 / 2, 100) = 210 s. An unmeasured run leaves the scale as it is.
+    #[test]
+    fn the_time_left_scales_the_predictions_by_what_was_measured() {
+        let p = Progress::new(4, Some(vec![10.0, 10.0, 100.0, 100.0]), 2, false);
+        let left = p.time_left(0, Some(20.0), 20.0, 1);
+        assert!(
+            (left - 2.0 * (210.0f64 / 2.0).max(100.0)).abs() < 1e-9,
+            "{left}"
+        );
+        // The second took its prediction: the scale is (20 + 10) / (10 + 10) = 1.5, and the
+        // two 100 s runs left share the two slots: 1.5 * max(200 / 2, 100) = 150.
+        let left = p.time_left(1, Some(10.0), 30.0, 2);
+        assert!((left - 150.0).abs() < 1e-9, "{left}");
+        // One long run left: its own length, however many slots.
+        let left = p.time_left(2, None, 200.0, 3);
+        assert!((left - 150.0).abs() < 1e-9, "{left}");
+        assert_eq!(p.time_left(3, Some(100.0), 300.0, 4), 0.0);
+    }
+
+    /// Without any measurement the time so far per run stands in; runs of equal weight may
+    /// end in any order, each counted once.
+    #[test]
+    fn without_measurements_the_time_so_far_per_run_stands_in() {
+        let p = Progress::new(4, None, 1, false);
+        assert!((p.time_left(usize::MAX, None, 30.0, 1) - 90.0).abs() < 1e-9);
+        let p = Progress::new(3, None, 1, false);
+        assert!((p.time_left(usize::MAX, Some(10.0), 10.0, 1) - 20.0).abs() < 1e-9);
+        assert!((p.time_left(usize::MAX, Some(10.0), 20.0, 2) - 10.0).abs() < 1e-9);
     }
 }

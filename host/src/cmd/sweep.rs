@@ -92,7 +92,19 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             missing.len()
         );
         if !missing.is_empty() {
-            let progress = Progress::new(missing.len(), None, true);
+            // The runs at once, for the estimate of the time left (a Slurm array without
+            // a limit: all of them).
+            let at_once = match args.executor {
+                Executor::Local => args
+                    .jobs
+                    .or(sweep.cfg.jobs)
+                    .unwrap_or_else(crate::cmd::bench::default_jobs),
+                Executor::Slurm => match args.jobs {
+                    Some(n) if n > 0 => n,
+                    _ => missing.len(),
+                },
+            };
+            let progress = Progress::new(missing.len(), None, at_once, true);
             match args.executor {
                 Executor::Local => {
                     crate::runner::interrupt::install();
@@ -101,8 +113,9 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
                         .or(sweep.cfg.jobs)
                         .unwrap_or_else(crate::cmd::bench::default_jobs);
                     sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
-                        // Cells finish in any order; they weigh the same.
-                        progress.finished(0, &cell.describe(), outcome)
+                        // Cells finish in any order; they weigh the same, so each
+                        // counts as the next unfinished one.
+                        progress.finished(usize::MAX, &cell.describe(), outcome)
                     })?;
                 }
                 Executor::Slurm => {
