@@ -203,7 +203,7 @@ pub fn write_run_figures(
         frame_scale >= 1,
         "--frame-scale {frame_scale}: a factor of 1 or more"
     );
-    use super::plot::{FALSE_LOOP, TRUE_LOOP, Track, WRONG_JOIN, scenario_chart};
+    use super::plot::{FALSE_LOOP, TRUE_LOOP, Track, WRONG_JOIN, push_segments, scenario_chart};
     let detail = run.detail.as_ref().with_context(|| {
         format!(
             "{}: the run did not finish ({}): no figures",
@@ -275,17 +275,7 @@ pub fn write_run_figures(
             "wrong joins of the final map (its later stretch)",
         ),
     ] {
-        if !segments.is_empty() {
-            error.legend.push((
-                Swatch::Line { color, width_px: 2 },
-                format!("{label} ({})", segments.len()),
-            ));
-            error.marks.push(Mark::Segments {
-                segments,
-                color,
-                width_px,
-            });
-        }
+        push_segments(&mut error, segments, color, width_px, label);
     }
     let path = out.join("error.svg");
     error

@@ -124,19 +124,32 @@ pub fn scenario_chart(scenario: &str, truth: &[(f64, f64)], tracks: &[Track]) ->
             "wrong joins of the final map (between the true places)",
         ),
     ] {
-        if !segments.is_empty() {
-            chart.legend.push((
-                Swatch::Line { color, width_px: 2 },
-                format!("{label} ({})", segments.len()),
-            ));
-            chart.marks.push(Mark::Segments {
-                segments,
-                color,
-                width_px: 1,
-            });
-        }
+        push_segments(&mut chart, segments, color, 1, label);
     }
     chart
+}
+
+/// Draws `segments` in `color`, `width_px` wide, with a legend entry "label (count)"; nothing
+/// when there are none.
+pub(super) fn push_segments(
+    chart: &mut Chart,
+    segments: Vec<[(f64, f64); 2]>,
+    color: Rgb,
+    width_px: u32,
+    label: &str,
+) {
+    if segments.is_empty() {
+        return;
+    }
+    chart.legend.push((
+        Swatch::Line { color, width_px: 2 },
+        format!("{label} ({})", segments.len()),
+    ));
+    chart.marks.push(Mark::Segments {
+        segments,
+        color,
+        width_px,
+    });
 }
 
 /// Writes `<scenario>.png` and `.svg` into `dir` for every scenario of `table`.
