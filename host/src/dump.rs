@@ -7,6 +7,8 @@
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{SyncSender, sync_channel};
+use std::thread::JoinHandle;
 
 use anyhow::{Context as _, bail};
 use sim::Simulation;
@@ -26,8 +28,77 @@ pub struct Dump {
     lidar_count: usize,
     scans: [Option<BufWriter<File>>; 2],
     rgbd_lists: Option<[BufWriter<File>; 3]>,
+    /// Encodes and writes the camera's PNGs beside the simulation (started with the first
+    /// frame).
+    images: Option<ImageWriter>,
     /// The camera's rate and `base_from_optical`, for `rgbd/camera.yaml`.
     camera: (f64, nalgebra::Isometry3<f64>),
+}
+
+/// One PNG to encode and write: its path, size, colour type and samples (16-bit ones
+/// big-endian, as PNG stores them).
+type PngJob = (PathBuf, u32, u32, png::ColorType, png::BitDepth, Vec<u8>);
+
+/// A thread that encodes and writes PNGs in the order given, so that the simulation renders
+/// the next camera frame meanwhile (encoding a frame's two images took as long as rendering
+/// it). Its first error ends it; the next [`ImageWriter::send`] or [`ImageWriter::finish`]
+/// returns that error.
+#[derive(Debug)]
+struct ImageWriter {
+    jobs: Option<SyncSender<PngJob>>,
+    thread: Option<JoinHandle<anyhow::Result<()>>>,
+}
+
+impl ImageWriter {
+    /// Frames in flight: enough to even out a slow write, few enough to bound memory
+    /// (two 640 x 480 frames are about 3 MB).
+    const QUEUE: usize = 4;
+
+    fn start() -> anyhow::Result<Self> {
+        let (tx, rx) = sync_channel::<PngJob>(Self::QUEUE);
+        let thread = std::thread::Builder::new()
+            .name("png-writer".into())
+            .spawn(move || {
+                for (path, w, h, colour, depth, bytes) in rx {
+                    write_png(&path, w, h, colour, depth, &bytes)?;
+                }
+                Ok(())
+            })?;
+        Ok(Self {
+            jobs: Some(tx),
+            thread: Some(thread),
+        })
+    }
+
+    fn send(&mut self, job: PngJob) -> anyhow::Result<()> {
+        if let Some(tx) = &self.jobs
+            && tx.send(job).is_ok()
+        {
+            return Ok(());
+        }
+        // The thread stopped: its error says why.
+        self.finish()?;
+        bail!("the PNG writer stopped early")
+    }
+
+    /// Waits for every PNG to be written.
+    fn finish(&mut self) -> anyhow::Result<()> {
+        self.jobs = None;
+        match self.thread.take().map(JoinHandle::join) {
+            None => bail!("the PNG writer stopped earlier"),
+            Some(Ok(result)) => result,
+            Some(Err(_)) => bail!("the PNG writer panicked"),
+        }
+    }
+}
+
+impl Drop for ImageWriter {
+    fn drop(&mut self) {
+        self.jobs = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
 }
 
 fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
@@ -65,6 +136,7 @@ impl Dump {
             lidar_count: 0,
             scans: [None, None],
             rgbd_lists: None,
+            images: None,
             camera: (
                 config.sensors.camera.rate_hz,
                 config.sensors.camera.mount.base_from_sensor() * sim::camera::camera_from_optical(),
@@ -166,28 +238,42 @@ impl Dump {
                 "# depth maps (16-bit PNG, depth in metres x 5000, 0: invalid)\n# timestamp filename"
             )?;
             self.rgbd_lists = Some(lists);
+            self.images = Some(ImageWriter::start()?);
             write_camera_yaml(&dir.join("camera.yaml"), frame, self.camera)?;
         }
         let t = seconds(frame.stamp_ns);
         let image = &frame.image;
-        sim::camera::save_rgb_png(&dir.join(format!("rgb/{t}.png")), image)?;
-        let depth: Vec<u16> = image
+        let (w, h) = (image.width as u32, image.height as u32);
+        // Depth in metres x 5000 as 16-bit samples, big-endian as PNG stores them.
+        let depth: Vec<u8> = image
             .depth_m
             .iter()
-            .map(|&d| {
-                if d.is_finite() && d > 0.0 {
+            .flat_map(|&d| {
+                let v = if d.is_finite() && d > 0.0 {
                     (d * 5000.0).round().min(65535.0) as u16
                 } else {
                     0
-                }
+                };
+                v.to_be_bytes()
             })
             .collect();
-        write_png16(
-            &dir.join(format!("depth/{t}.png")),
-            image.width as u32,
-            image.height as u32,
-            &depth,
-        )?;
+        let images = self.images.as_mut().expect("started with the first frame");
+        images.send((
+            dir.join(format!("rgb/{t}.png")),
+            w,
+            h,
+            png::ColorType::Rgb,
+            png::BitDepth::Eight,
+            image.rgb.clone(),
+        ))?;
+        images.send((
+            dir.join(format!("depth/{t}.png")),
+            w,
+            h,
+            png::ColorType::Grayscale,
+            png::BitDepth::Sixteen,
+            depth,
+        ))?;
         let lists = self.rgbd_lists.as_mut().expect("opened above");
         writeln!(lists[0], "{t} rgb/{t}.png")?;
         writeln!(lists[1], "{t} depth/{t}.png")?;
@@ -197,6 +283,9 @@ impl Dump {
 
     /// Flushes everything and moves the folder into place; returns its path.
     pub fn finish(mut self) -> anyhow::Result<PathBuf> {
+        if let Some(images) = self.images.as_mut() {
+            images.finish()?;
+        }
         let writers = [
             &mut self.gt,
             &mut self.imu,
@@ -224,6 +313,8 @@ impl Dump {
 
 impl Drop for Dump {
     fn drop(&mut self) {
+        // Its images first: nothing may still be writing into the folder removed here.
+        self.images = None;
         // Only a dump that was not finished still has its temporary folder.
         if self.tmp.exists() {
             let _ = fs::remove_dir_all(&self.tmp);
@@ -294,16 +385,31 @@ fn scan_header(scan: &LaserScan) -> String {
     )
 }
 
-/// A 16-bit grayscale PNG (big-endian samples, as PNG stores them).
-fn write_png16(path: &Path, width: u32, height: u32, values: &[u16]) -> anyhow::Result<()> {
+/// A PNG of `bytes` (samples row by row; 16-bit ones big-endian, as PNG stores them),
+/// compressed with `png`'s fast mode (fdeflate: the same pixels, files a little larger than
+/// its default mode gives, in a fraction of the time).
+fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    colour: png::ColorType,
+    depth: png::BitDepth,
+    bytes: &[u8],
+) -> anyhow::Result<()> {
     let file = BufWriter::new(File::create(path).with_context(|| path.display().to_string())?);
     let mut encoder = png::Encoder::new(file, width, height);
-    encoder.set_color(png::ColorType::Grayscale);
-    encoder.set_depth(png::BitDepth::Sixteen);
-    let mut writer = encoder.write_header()?;
-    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
-    writer.write_image_data(&bytes)?;
-    writer.finish()?;
+    encoder.set_color(colour);
+    encoder.set_depth(depth);
+    encoder.set_compression(png::Compression::Fast);
+    let mut writer = encoder
+        .write_header()
+        .with_context(|| path.display().to_string())?;
+    writer
+        .write_image_data(bytes)
+        .with_context(|| path.display().to_string())?;
+    writer
+        .finish()
+        .with_context(|| path.display().to_string())?;
     Ok(())
 }
 

@@ -252,9 +252,10 @@ fn bench_in(
     let ran = if sub.runs.is_empty() {
         Vec::new()
     } else {
-        tri!(crate::runner::execute(
+        tri!(crate::runner::execute_observed(
             &sub,
             staging.dir(),
+            &|schedule| progress.set_schedule(schedule),
             &|i, outcome| {
                 progress.finished(
                     i,

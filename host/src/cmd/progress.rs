@@ -16,9 +16,12 @@ use crate::results::{RunOutcome, RunStatus};
 /// its system's wall seconds per simulated second in the previous results, where there
 /// are any, else times 1); the finished runs' measured durations (`timing.json`'s
 /// `wall_s`) against their predictions scale the predictions of the rest, which share
-/// `jobs` slots: time left = max(sum / jobs, the longest). Runs measured before predict
-/// themselves from the first finished run on; a route length alone cannot tell a camera
-/// system's hour from a baseline's seconds.
+/// `jobs` slots: time left = max(sum / jobs, the longest). Where the runner said how the
+/// runs start ([`Progress::set_schedule`]), a group's runs count as one, as long as its
+/// longest prediction, for the slots it takes (a shared simulation's runs end together),
+/// and a group with a finished run as ended. Runs measured before predict themselves from
+/// the first finished run on; a route length alone cannot tell a camera system's hour from
+/// a baseline's seconds.
 #[derive(Debug)]
 pub struct Progress {
     total: usize,
@@ -27,6 +30,8 @@ pub struct Progress {
     jobs: usize,
     /// Which runs have ended, and the sums of their predicted and measured durations.
     ended: Mutex<(Vec<bool>, f64, f64)>,
+    /// How the runs start, once the runner has said (`runner::Schedule`).
+    schedule: Mutex<Option<crate::runner::Schedule>>,
     started: Instant,
     /// On a terminal: the bar, or nothing when the runner draws its own per run.
     bar: Option<ProgressBar>,
@@ -56,10 +61,19 @@ impl Progress {
             predicted: predicted.unwrap_or_else(|| vec![1.0; total]),
             jobs: jobs.max(1),
             ended: Mutex::new((vec![false; total], 0.0, 0.0)),
+            schedule: Mutex::new(None),
             started: Instant::now(),
             bar,
             terminal,
         }
+    }
+
+    /// How the runs will start (from the runner, before any does).
+    pub fn set_schedule(&self, schedule: &crate::runner::Schedule) {
+        *self
+            .schedule
+            .lock()
+            .expect("no panics while holding the lock") = Some(schedule.clone());
     }
 
     /// The time left after run `index` ended having taken `measured_s` (its `wall_s`;
@@ -95,8 +109,27 @@ impl Progress {
             return elapsed_s / k as f64 * left.len() as f64 / self.jobs as f64;
         }
         let scale = *measured_sum / *predicted_sum;
-        let sum: f64 = left.iter().sum();
-        let longest = left.iter().copied().fold(0.0, f64::max);
+        let schedule = self
+            .schedule
+            .lock()
+            .expect("no panics while holding the lock");
+        let (sum, longest) = match schedule.as_ref() {
+            // Per group not yet begun to end: its longest run, times the share of the
+            // slots it takes.
+            Some(groups) => groups
+                .iter()
+                .filter(|(runs, _)| runs.iter().all(|&i| flags.get(i) == Some(&false)))
+                .map(|(runs, slots)| {
+                    let d = runs
+                        .iter()
+                        .filter_map(|&i| self.predicted.get(i))
+                        .copied()
+                        .fold(0.0, f64::max);
+                    (d * *slots as f64, d)
+                })
+                .fold((0.0, 0.0), |(s, l), (w, d)| (s + w, f64::max(l, d))),
+            None => (left.iter().sum(), left.iter().copied().fold(0.0, f64::max)),
+        };
         scale * (sum / self.jobs as f64).max(longest)
     }
 
@@ -171,6 +204,26 @@ mod tests {
         let left = p.time_left(2, None, 200.0, 3);
         assert!((left - 150.0).abs() < 1e-9, "{left}");
         assert_eq!(p.time_left(3, Some(100.0), 300.0, 4), 0.0);
+    }
+
+    /// With the runner's schedule a shared group counts once, as its longest run, for the
+    /// slots it takes: on two slots, a camera group of two runs (100, 90 s), a lidar group
+    /// of three taking both slots (50, 40, 45 s), one unshared run (10 s). The first run
+    /// took twice its prediction and its group ends with it: 2 * (50 * 2 + 10 * 1) / 2 =
+    /// 110 s are left, where counting runs would say 2 * (90 + 50 + 40 + 45 + 10) / 2.
+    #[test]
+    fn a_shared_group_counts_as_its_longest_run() {
+        let p = Progress::new(6, Some(vec![100.0, 90.0, 50.0, 40.0, 45.0, 10.0]), 2, false);
+        p.set_schedule(&vec![(vec![0, 1], 2), (vec![2, 3, 4], 2), (vec![5], 1)]);
+        let left = p.time_left(0, Some(200.0), 200.0, 1);
+        assert!((left - 110.0).abs() < 1e-9, "{left}");
+        // The group's other run ends: nothing changes but the scale ((200 + 90) / 190).
+        let left = p.time_left(1, Some(90.0), 200.0, 2);
+        assert!((left - 110.0 * 290.0 / 190.0 / 2.0).abs() < 1e-9, "{left}");
+        // The lidar group begins to end: the unshared run is left, alone on a slot of two
+        // (its own length: max(10 / 2, 10)).
+        let left = p.time_left(2, Some(50.0), 300.0, 3);
+        assert!((left - 10.0 * 340.0 / 240.0).abs() < 1e-9, "{left}");
     }
 
     /// Without any measurement the time so far per run stands in; runs of equal weight may

@@ -11,6 +11,7 @@ use sim::SensorSet;
 
 use crate::cmd::sim_args::{SimArgs, Simulated};
 use crate::dump::Dump;
+use crate::runner::timing::SimulationCost;
 
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
@@ -54,20 +55,15 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     );
     bar.set_prefix(format!("simulate {}", args.sim.scenario));
     let mut counts = std::collections::BTreeMap::<&'static str, u64>::new();
-    // Wall seconds spent making each sensor's messages, and writing them with --out.
-    let mut costs = std::collections::BTreeMap::<&'static str, [f64; 2]>::new();
+    // Wall time spent making each sensor's messages, and writing them with --out.
+    let mut making = SimulationCost::default();
+    let mut writing = std::collections::BTreeMap::<&'static str, f64>::new();
     let mut lidar_points = 0u64;
     let mut stream = sim.stream(sensors);
-    loop {
-        let made = Instant::now();
-        let Some(message) = stream.next() else {
-            break;
-        };
+    while let Some(message) = making.next_from(&mut stream) {
         if message.stamp_ns() > duration_ns {
             break;
         }
-        let cost = costs.entry(message.sensor()).or_default();
-        cost[0] += made.elapsed().as_secs_f64();
         *counts.entry(message.sensor()).or_default() += 1;
         if let sim::sensors::Message::Lidar(scan) = &message {
             lidar_points += scan.points.len() as u64;
@@ -76,12 +72,15 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         if let Some(d) = dump.as_mut() {
             let written = Instant::now();
             d.write(&message)?;
-            cost[1] += written.elapsed().as_secs_f64();
+            *writing.entry(message.sensor()).or_default() += written.elapsed().as_secs_f64();
         }
     }
     bar.finish_and_clear();
+    // Whatever the PNG writer still has in hand is the camera's writing too.
+    let finishing = Instant::now();
     if let Some(d) = dump {
         let dir = d.finish()?;
+        *writing.entry("rgbd").or_default() += finishing.elapsed().as_secs_f64();
         eprintln!("wrote {}", dir.display());
     }
     let wall = started.elapsed().as_secs_f64();
@@ -95,18 +94,14 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     );
     // What each sensor of the rig costs: wall seconds per simulated second to make its
     // messages (and to write them), the simulator's parallel work included.
-    let per_sensor: Vec<String> = costs
+    let per_sensor: Vec<String> = making
+        .per_simulated_s(simulated)
         .iter()
-        .map(|(sensor, [make, write])| {
-            if args.out.is_some() {
-                format!(
-                    "{sensor} {:.3} + {:.3} writing",
-                    make / simulated,
-                    write / simulated
-                )
-            } else {
-                format!("{sensor} {:.3}", make / simulated)
+        .map(|(sensor, make)| match writing.get(sensor.as_str()) {
+            Some(write) if args.out.is_some() => {
+                format!("{sensor} {make:.3} + {:.3} writing", write / simulated)
             }
+            _ => format!("{sensor} {make:.3}"),
         })
         .collect();
     crate::out!("cost, wall s per simulated s: {}", per_sensor.join(", "));

@@ -276,6 +276,12 @@ pub struct Timing {
     pub realtime_factor_plugin: f64,
     /// Per kind of call (sensor, `finish`), in name order.
     pub latency: BTreeMap<String, Latency>,
+    /// What the simulation cost per sensor: wall seconds spent making its messages per
+    /// simulated second, the simulator's parallel work included (the worker's own
+    /// simulation, or the supervisor's when shared, whose cost its whole group shares; empty
+    /// for a dataset).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub simulation_cost: BTreeMap<String, f64>,
 }
 
 /// `ape.csv`: the final estimate after alignment and its APE translation error at every pose

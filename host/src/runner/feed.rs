@@ -22,12 +22,13 @@
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
 
+use super::timing::SimulationCost;
 use crate::dataset::{Assembler, ScanTiming, Topic, to_ros};
 
 /// Messages the simulation may run ahead of a worker (as in a worker's own simulation).
@@ -250,6 +251,9 @@ pub struct Feed {
     pub scan_timing: ScanTiming,
     /// A worker that takes no message for this long is cut off.
     pub stall: Duration,
+    /// What the simulation cost per sensor, set once it has run to its end (before the end
+    /// mark goes out, so before any worker can finish).
+    pub cost: Arc<OnceLock<SimulationCost>>,
 }
 
 /// How a worker's feeding ended.
@@ -370,11 +374,14 @@ impl Feed {
             // The simulator produces ahead on its own thread, as in a worker.
             let (sim_tx, sim_rx) = sync_channel::<Message>(AHEAD);
             let producer = scope.spawn(move || {
-                for m in sim.stream(sensors) {
+                let mut cost = SimulationCost::default();
+                let mut stream = sim.stream(sensors);
+                while let Some(m) = cost.next_from(&mut stream) {
                     if end.is_some_and(|e| m.stamp_ns() > e) || sim_tx.send(m).is_err() {
                         break;
                     }
                 }
+                cost
             });
             for message in sim_rx {
                 let frame = Arc::new(Frames::encode(&message, &self.scan_timing));
@@ -390,7 +397,13 @@ impl Feed {
                     break;
                 }
             }
-            let simulated = producer.join().is_ok();
+            let simulated = match producer.join() {
+                Ok(cost) => {
+                    let _ = self.cost.set(cost);
+                    true
+                }
+                Err(_) => false,
+            };
             if simulated {
                 self.offer(
                     lanes.iter_mut().map(|(lane, _)| lane).collect(),
@@ -551,6 +564,7 @@ mod tests {
             end_ns: Some(2_000_000_000),
             stall: Duration::from_secs(30),
             scan_timing: ScanTiming::new(&config),
+            cost: Arc::default(),
         };
         let readers = std::thread::spawn(move || {
             let a: Vec<Message> = FeedReader::new(a_read).collect();
@@ -602,6 +616,15 @@ mod tests {
             "b got exactly its own simulation's stream"
         );
         assert!(a.iter().any(|m| matches!(m, Message::Imu(_))));
+        // The simulation's cost is noted for every sensor the group needed, and none else.
+        let cost = feed.cost.get().expect("set once the simulation ended");
+        let per_s = cost.per_simulated_s(2.0);
+        assert_eq!(
+            per_s.keys().map(String::as_str).collect::<Vec<_>>(),
+            ["gt", "imu", "odom"],
+            "{per_s:?}"
+        );
+        assert!(per_s.values().all(|&c| c > 0.0), "{per_s:?}");
     }
     /// A group goes on without its hung workers: two workers that never read are cut off
     /// (each costs the group at most one stall time), long before their own end, and a
@@ -621,6 +644,7 @@ mod tests {
             end_ns: Some(20_000_000_000),
             stall,
             scan_timing: ScanTiming::new(&config),
+            cost: Arc::default(),
         };
         let pipe = || std::os::unix::net::UnixStream::pair().expect("socket pair");
         let (healthy_write, healthy_read) = pipe();

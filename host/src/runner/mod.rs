@@ -9,12 +9,12 @@ pub mod interrupt;
 pub mod job;
 mod loops;
 mod supervise;
-mod timing;
+pub mod timing;
 pub mod worker;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, OnceLock};
 use std::time::Duration;
 
 use anyhow::Context as _;
@@ -68,6 +68,21 @@ pub type OnDone<'a> = &'a (dyn Fn(usize, &RunOutcome) + Sync);
 /// must not exist yet), calling `on_done` as each run ends; returns every run's outcome in
 /// the plan's order.
 pub fn execute(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<RunOutcome>> {
+    execute_observed(plan, work, &|_| {}, on_done)
+}
+
+/// How the runs start: groups of run indices in the order they start, each with the slots
+/// it takes (of the plan's `jobs`), a group's runs together (one shared simulation).
+pub type Schedule = Vec<(Vec<usize>, usize)>;
+
+/// [`execute`], telling `on_schedule` how the runs will start before any does (a progress
+/// estimate follows it: a shared group's runs take as long as its slowest).
+pub fn execute_observed(
+    plan: &Plan,
+    work: &Path,
+    on_schedule: &dyn Fn(&Schedule),
+    on_done: OnDone,
+) -> anyhow::Result<Vec<RunOutcome>> {
     let config = sim::SimConfig::load(plan.world.as_deref())?;
     for s in &plan.scenarios {
         if !config.scenarios.contains_key(s) {
@@ -83,7 +98,7 @@ pub fn execute(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<
         }
     }
     std::fs::create_dir_all(work).with_context(|| work.display().to_string())?;
-    run_all(plan, &config, work, on_done)
+    run_all(plan, &config, work, on_schedule, on_done)
 }
 
 /// Where each scenario of the plan stops, ns: its route's end or the plan's limit.
@@ -123,6 +138,7 @@ fn run_all(
     plan: &Plan,
     config: &sim::SimConfig,
     work: &Path,
+    on_schedule: &dyn Fn(&Schedule),
     on_done: OnDone,
 ) -> anyhow::Result<Vec<RunOutcome>> {
     let world = sim::world::World::from_config(config);
@@ -141,6 +157,12 @@ fn run_all(
         .expect("valid template")
         .progress_chars("=> ");
     let groups = group_runs(plan, &lengths);
+    on_schedule(
+        &groups
+            .iter()
+            .map(|g| (g.runs.clone(), g.runs.len().min(plan.jobs.max(1))))
+            .collect(),
+    );
     let mut fed = vec![false; plan.runs.len()];
     for g in groups.iter().filter(|g| g.shared) {
         g.runs.iter().for_each(|&i| fed[i] = true);
@@ -408,15 +430,24 @@ fn run_shared(
     let simulation = sim::Simulation::with_world(config, world.clone(), scenario, plan.seed);
     let end_ns = plan.max_time_s.map(job::max_time_ns);
     let stall = STALL.min(plan.timeout / 4);
+    // The shared simulation's cost, which each run's timing.json notes (its group shares it).
+    let cost = Arc::new(OnceLock::<timing::SimulationCost>::new());
     let done_now = |i: usize, outcome: Result<(), String>| {
+        if outcome.is_ok()
+            && let Some(cost) = cost.get()
+        {
+            note_simulation_cost(&dirs[i], cost);
+        }
         done(i, finish_run(&plan.runs[i], &dirs[i], plan, outcome));
     };
+    let feed_cost = Arc::clone(&cost);
     std::thread::scope(|scope| {
         let feeding = scope.spawn(move || match simulation {
             Ok(sim) => feed::Feed {
                 end_ns,
                 stall,
                 scan_timing: crate::dataset::ScanTiming::new(config),
+                cost: feed_cost,
             }
             .run(&sim, subscribers),
             Err(e) => Err(format!("{e}")),
@@ -506,6 +537,16 @@ fn not_run(run: &PlannedRun, dir: &Path, plan: &Plan) -> RunOutcome {
 
 /// A run's outcome once its worker has ended: scored if it succeeded; its status written
 /// unless it was interrupted (an interrupted run counts as not run).
+/// Adds a shared simulation's per-sensor cost to a finished run's `timing.json` (the worker
+/// wrote it without: it only read the stream). A run without one is left as it is.
+fn note_simulation_cost(dir: &Path, cost: &timing::SimulationCost) {
+    let folder = RunFolder::new(dir);
+    if let Ok(Some(mut t)) = folder.read_timing() {
+        t.simulation_cost = cost.per_simulated_s(t.simulated_s);
+        let _ = folder.write_timing(&t);
+    }
+}
+
 fn finish_run(
     run: &PlannedRun,
     dir: &Path,

@@ -2,7 +2,9 @@
 //! process's CPU time and peak memory, and the real-time factors.
 
 use std::collections::BTreeMap;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+use sim::sensors::Message;
 
 use crate::results::{Latency, Timing as TimingReport};
 
@@ -64,7 +66,38 @@ impl Timing {
             realtime_factor: simulated_s / wall_s.max(1e-9),
             realtime_factor_plugin: simulated_s / plugin_s.max(1e-9),
             latency,
+            simulation_cost: BTreeMap::new(),
         }
+    }
+}
+
+/// Wall time a simulation spent making each sensor's messages: the time to draw each
+/// message from the stream, charged to that message's sensor.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct SimulationCost {
+    wall: BTreeMap<&'static str, Duration>,
+}
+
+impl SimulationCost {
+    /// The next message of `stream`, its making charged to its sensor.
+    pub fn next_from(&mut self, stream: &mut impl Iterator<Item = Message>) -> Option<Message> {
+        let started = Instant::now();
+        let message = stream.next()?;
+        *self.wall.entry(message.sensor()).or_default() += started.elapsed();
+        Some(message)
+    }
+
+    /// Wall seconds per simulated second, per sensor.
+    pub fn per_simulated_s(&self, simulated_s: f64) -> BTreeMap<String, f64> {
+        self.wall
+            .iter()
+            .map(|(&sensor, wall)| {
+                (
+                    sensor.to_owned(),
+                    wall.as_secs_f64() / simulated_s.max(1e-9),
+                )
+            })
+            .collect()
     }
 }
 

@@ -17,7 +17,7 @@ use sim::{SensorSet, Simulation};
 
 use super::feed::{AHEAD, FeedReader};
 use super::job::{Job, Pace};
-use super::timing::{Timing, process_cpu_s, process_peak_rss_mb};
+use super::timing::{SimulationCost, Timing, process_cpu_s, process_peak_rss_mb};
 use crate::results::{RunFolder, files};
 
 /// Which sensors to simulate for a plugin's requirements (ground truth always).
@@ -109,14 +109,17 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     // Without one the stream is fed whole, as before.
     let cut = job.max_time_s.is_some();
     let source = source.take_while(move |m| !cut || m.stamp_ns() <= total_ns);
-    std::thread::scope(|scope| -> anyhow::Result<()> {
+    let cost = std::thread::scope(|scope| -> anyhow::Result<SimulationCost> {
         let (tx, rx) = sync_channel(AHEAD);
         let producer = scope.spawn(move || {
-            for message in source {
+            let mut cost = SimulationCost::default();
+            let mut source = source;
+            while let Some(message) = cost.next_from(&mut source) {
                 if tx.send(message).is_err() {
                     break;
                 }
             }
+            cost
         });
         let mut clock = Pacer::new(job.pace);
         for message in rx {
@@ -147,8 +150,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         }
         producer
             .join()
-            .map_err(|_| anyhow!("the simulator thread panicked"))?;
-        Ok(())
+            .map_err(|_| anyhow!("the simulator thread panicked"))
     })?;
     if let Some(slot) = feed_error
         && let Some(e) = slot.lock().expect("no panic holds this lock").take()
@@ -188,6 +190,11 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         (None, false) => "simulation",
     }
     .to_owned();
+    // Only the worker's own simulation costs it what the stream took; a shared one's cost
+    // is the supervisor's to note (`runner::feed`), a dataset's is reading.
+    if job.dataset.is_none() && !job.fed {
+        report.simulation_cost = cost.per_simulated_s(simulated);
+    }
     RunFolder::new(&job.out_dir).write_timing(&report)?;
     writeln!(stdout, "progress {total_ns} {total_ns}").ok();
     Ok(())

@@ -758,6 +758,31 @@ fn a_shared_simulation_gives_every_run_its_own_data() {
             "{label} was fed by its group's simulation"
         );
         assert_eq!(json(&run(&own).join("timing.json"))["source"], "simulation");
+        // What the simulation cost per sensor: its own sensors for an unshared run; for a
+        // shared one its group's (lidar for the lio-sam runs, wheels for the baselines).
+        let cost = |out: &Path| -> Vec<String> {
+            let t = json(&run(out).join("timing.json"));
+            let cost = t["simulation_cost"]
+                .as_object()
+                .unwrap_or_else(|| panic!("{label}: no simulation_cost in {t}"));
+            assert!(
+                cost.values().all(|c| c.as_f64().is_some_and(|c| c >= 0.0)),
+                "{label}: {t}"
+            );
+            cost.keys().cloned().collect()
+        };
+        let (own_cost, shared_cost) = (cost(&own), cost(&shared));
+        let expected: &[&str] = if label.starts_with("lio") {
+            &["gt", "lidar"]
+        } else {
+            &["gt", "odom"]
+        };
+        for sensor in expected {
+            assert!(
+                own_cost.iter().any(|s| s == sensor) && shared_cost.iter().any(|s| s == sensor),
+                "{label}: {sensor} in {own_cost:?} and {shared_cost:?}"
+            );
+        }
         for f in [
             "groundtruth.tum",
             "estimate.tum",

@@ -6,7 +6,10 @@
 //!
 //! 1. `chunks`: the mesh, pre-cut into 1 m cells with bounding boxes, is culled against
 //!    the view frustum; the surviving triangles are moved to the optical frame, clipped at
-//!    the near plane and projected (`raster`).
+//!    the near plane and projected (`raster`). A pass that would discard what lies beyond
+//!    some depth (the colour camera's far clip; a single-sample depth pass beyond its range)
+//!    does not rasterize the chunks and triangles wholly beyond it: the same bytes, less work
+//!    (tested frame for frame).
 //! 2. `raster`: per band of rows, a z-buffer keeps the nearest triangle of each visibility
 //!    sample (a visibility buffer: 1/z and a triangle index; ties go to the smaller index).
 //!    By default a pixel has 4 samples (`antialias_samples`: Direct3D's standard rotated
@@ -108,6 +111,20 @@ pub fn sample_offsets(samples: usize) -> &'static [[f32; 2]] {
 /// Rows per parallel band: fixed, so that output never depends on the thread count.
 const BAND_ROWS: usize = 8;
 
+/// What one render pass draws.
+#[derive(Debug, Clone, Copy)]
+struct Pass {
+    /// Visibility samples of a pixel.
+    pattern: &'static [[f32; 2]],
+    /// Nothing beyond this optical-axis depth is drawn (a far clip plane).
+    far: Option<f32>,
+    /// Chunks and triangles wholly beyond this optical-axis depth are not rasterized: only
+    /// where the pass's output is the same without them (`raster::View::culling_beyond`).
+    cull_beyond: Option<f32>,
+    /// Colour is shaded (else depth only: a depth camera's pass).
+    colour: bool,
+}
+
 /// An RGB-D camera over one world; built once (cuts the mesh into chunks and, with
 /// shadows, renders the sun's shadow map), then renders any number of frames.
 #[derive(Debug)]
@@ -126,8 +143,13 @@ pub struct RgbdCamera {
     rgb_noise: Vec<f32>,
     /// Visibility sample offsets of a pixel (`antialias_samples` of them).
     pattern: &'static [[f32; 2]],
+    /// The separate depth camera's (`depth_antialias_samples` of them).
+    depth_pattern: &'static [[f32; 2]],
     /// A uniform `background` in linear light (the output's encoding squares back to it).
     background: Option<[f32; 3]>,
+    /// Leave out what a pass would only discard (`Pass::cull_beyond`); off only in the test
+    /// that shows it changes nothing.
+    culling: bool,
 }
 
 impl RgbdCamera {
@@ -151,10 +173,12 @@ impl RgbdCamera {
                 Vec::new()
             },
             pattern: raster::pattern(cfg.antialias_samples),
+            depth_pattern: raster::pattern(cfg.depth_antialias_samples),
             background: match cfg.background {
                 Background::Sky(_) => None,
                 Background::Rgb(c) => Some(c.map(|x| (x * x) as f32)),
             },
+            culling: true,
         }
     }
 
@@ -192,13 +216,31 @@ impl RgbdCamera {
             seed,
         };
         let far = self.cfg.colour_far_clip_m.map(|f| f as f32);
+        let colour = Pass {
+            pattern: self.pattern,
+            far,
+            // Beyond the far clip nothing is drawn: nothing there need be rasterized.
+            cull_beyond: far,
+            colour: true,
+        };
         let (rgb, mut depth, mut cos_incidence) =
-            self.pass(&world_from_optical, &self.intrinsics, far, &effects, true);
+            self.pass(&world_from_optical, &self.intrinsics, &colour, &effects);
         if let Some(k) = &self.depth_intrinsics {
             match self.cfg.depth_registration {
                 DepthRegistration::Stretched => {
                     // The depth camera's own image, handed over pixel for pixel.
-                    let (_, d, c) = self.pass(&world_from_optical, k, None, &effects, false);
+                    // With one sample a pixel's depth is its centre's surface, so one wholly
+                    // beyond the range (and beyond what edge dropout compares a neighbour
+                    // with) would only ever give 0: it is not rasterized.
+                    let cull_beyond = (self.depth_pattern.len() == 1)
+                        .then(|| effects.max_depth_m * (1.0 + effects.edge_dropout_ratio.max(0.0)));
+                    let depth_pass = Pass {
+                        pattern: self.depth_pattern,
+                        far: None,
+                        cull_beyond,
+                        colour: false,
+                    };
+                    let (_, d, c) = self.pass(&world_from_optical, k, &depth_pass, &effects);
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
@@ -247,23 +289,30 @@ impl RgbdCamera {
     }
 
     /// Steps 1-3 through intrinsics `k` (the configured image size): colour with its noise
-    /// (none without `colour`: a depth camera's pass, which shades nothing), depth and the
-    /// cosine of incidence without theirs; with `far`, nothing beyond that optical-axis
-    /// depth is drawn.
+    /// (none without `pass.colour`: a depth camera's pass, which shades nothing), depth and
+    /// the cosine of incidence without theirs.
     fn pass(
         &self,
         world_from_optical: &Isometry3<f64>,
         k: &Intrinsics,
-        far: Option<f32>,
+        pass: &Pass,
         effects: &depth_noise::Effects<'_>,
-        colour: bool,
     ) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
         let (w, h) = (k.width, k.height);
-        let view = raster::View::new(world_from_optical, k);
+        let Pass {
+            pattern,
+            far,
+            cull_beyond,
+            colour,
+        } = *pass;
+        let mut view = raster::View::new(world_from_optical, k);
+        if let Some(z) = cull_beyond.filter(|_| self.culling) {
+            view = view.culling_beyond(z);
+        }
 
         // 1: cull and project.
         let visible = self.chunks.visible(&view);
-        let tris = raster::project_all(&self.chunks, &visible, &view, raster::reach(self.pattern));
+        let tris = raster::project_all(&self.chunks, &visible, &view, raster::reach(pattern));
         let bins = raster::bin_by_band(&tris, h, BAND_ROWS);
 
         let shader = Shader {
@@ -279,7 +328,6 @@ impl RgbdCamera {
         // 2-3: per band, rasterize a visibility buffer (small enough to stay in cache),
         // then shade and resolve it; colour gets its noise here, depth is kept clean for
         // step 4.
-        let pattern = self.pattern;
         let n = pattern.len();
         let mut rgb = vec![0u8; 3 * w * h];
         let mut depth = vec![0.0f32; w * h];
@@ -419,5 +467,66 @@ impl RgbdCamera {
             );
 
         (rgb, depth, cos_incidence)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::SimConfig;
+    use crate::simulation::Simulation;
+
+    /// Leaving out what lies wholly beyond a pass's reach changes no byte of any frame: the
+    /// colour pass clipped at its far plane (4 samples a pixel), and a separate depth
+    /// camera's single-sample pass beyond its range and what edge dropout compares (noise
+    /// and dropout on), along a stretch of S3 of the default world looking down its lanes.
+    #[test]
+    fn culling_beyond_a_passs_reach_changes_no_byte() {
+        let cfg = SimConfig::default();
+        let sim = Simulation::new(&cfg, "s3", 7).expect("s3");
+        let world = World::from_config(&cfg);
+        let cam_cfg = CameraConfig {
+            colour_far_clip_m: Some(6.0),
+            depth_hfov_deg: Some(70.0),
+            depth_registration: DepthRegistration::Stretched,
+            depth_antialias_samples: 1,
+            ..cfg.sensors.camera.clone()
+        };
+        assert!(cam_cfg.edge_dropout_ratio > 0.0 && cam_cfg.noise == NoiseProfile::Typical);
+        let culled = RgbdCamera::new(&cam_cfg, &world);
+        let whole = RgbdCamera {
+            culling: false,
+            ..RgbdCamera::new(&cam_cfg, &world)
+        };
+        let mut rng = crate::rng::stream(1, "cull");
+        let (mut frames, mut valid) = (0, 0);
+        for t_s in [20, 45, 70, 95] {
+            let pose = sim.trajectory.pose(t_s * 1_000_000_000);
+            let seed: u64 = rng.random();
+            let a = culled.render(&pose, &mut crate::rng::stream(seed, "frame"));
+            let b = whole.render(&pose, &mut crate::rng::stream(seed, "frame"));
+            assert_eq!(a.rgb, b.rgb, "colour at {t_s} s");
+            assert!(
+                a.depth_m
+                    .iter()
+                    .zip(&b.depth_m)
+                    .all(|(p, q)| p.to_bits() == q.to_bits()),
+                "depth at {t_s} s"
+            );
+            frames += 1;
+            valid += a.depth_m.iter().filter(|&&z| z > 0.0).count();
+        }
+        assert_eq!(frames, 4);
+        assert!(valid > 100_000, "{valid} valid depth pixels in 4 frames");
+        // And culling leaves something out: the chunks a pass rasterizes.
+        let pose = sim.trajectory.pose(45_000_000_000);
+        let world_from_optical = pose * culled.base_from_camera_optical;
+        let view = raster::View::new(&world_from_optical, &culled.intrinsics);
+        let all = culled.chunks.visible(&view).len();
+        let near = culled.chunks.visible(&view.culling_beyond(6.0)).len();
+        assert!(
+            (near as f64) < 0.7 * all as f64,
+            "{near} of {all} chunks within 6 m"
+        );
     }
 }

@@ -91,7 +91,16 @@ pub(crate) struct View {
     pub height: usize,
     /// Frustum planes in the world frame: inside when `n · p + d >= 0`.
     planes: [([f32; 3], f32); 5],
+    /// With [`View::culling_beyond`]: the optical-axis depth beyond which whole chunks and
+    /// triangles are left out (`f32::INFINITY`: none are).
+    cull_beyond: f32,
 }
+
+/// How far past a far plane culling starts, relative to its distance: a triangle wholly
+/// beyond the plane is still rasterized if it comes this close, so that no sample the
+/// interpolated 1 / z (a few ulps off the exact value) would put in front of the plane is
+/// lost. Culling is then exact: whatever the pass draws beyond the plane it discards.
+const CULL_MARGIN: f32 = 1e-3;
 
 pub(crate) fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -147,15 +156,31 @@ impl View {
             width: k.width,
             height: k.height,
             planes,
+            cull_beyond: f32::INFINITY,
         }
     }
 
-    /// Whether an axis-aligned box may meet the frustum (conservative).
+    /// The same view, leaving out what lies wholly beyond optical-axis depth `far_m` (with
+    /// a margin, [`CULL_MARGIN`]): for a pass that discards everything beyond `far_m`
+    /// anyway (a far clip plane, a depth camera's range), so the output is the same.
+    pub fn culling_beyond(mut self, far_m: f32) -> Self {
+        self.cull_beyond = far_m * (1.0 + CULL_MARGIN);
+        self
+    }
+
+    /// Whether an axis-aligned box may meet the frustum (conservative), and with
+    /// [`View::culling_beyond`] come nearer than its depth.
     pub fn box_visible(&self, lo: &[f32; 3], hi: &[f32; 3]) -> bool {
-        self.planes.iter().all(|(n, d)| {
+        let beside = |n: &[f32; 3], d: f32| {
             let p = [0, 1, 2].map(|k| if n[k] >= 0.0 { hi[k] } else { lo[k] });
             dot(n, &p) + d >= 0.0
-        })
+        };
+        self.planes.iter().all(|(n, d)| beside(n, *d))
+            && (self.cull_beyond == f32::INFINITY || {
+                // The far plane: inside when the optical z is at most `cull_beyond`.
+                let n = self.axes[2].map(|c| -c);
+                beside(&n, self.cull_beyond + dot(&self.axes[2], &self.origin))
+            })
     }
 
     /// A world point in the optical frame.
@@ -316,7 +341,7 @@ pub(crate) fn project_all(
 fn project(view: &View, c: [[f32; 3]; 3], id: u32, reach: f32, out: &mut Vec<ScreenTri>) {
     let inside = c.map(|p| p[2] >= NEAR_M);
     let n_in = inside.iter().filter(|&&b| b).count();
-    if n_in == 0 {
+    if n_in == 0 || c.iter().all(|p| p[2] > view.cull_beyond) {
         return;
     }
     // Quick reject: all corners beyond one side plane.

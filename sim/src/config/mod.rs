@@ -188,6 +188,12 @@ impl SimConfig {
                 c.antialias_samples
             ));
         }
+        if !matches!(c.depth_antialias_samples, 1 | 4 | 8) {
+            return Err(format!(
+                "sensors.camera.depth_antialias_samples = {}: must be 1, 4 or 8",
+                c.depth_antialias_samples
+            ));
+        }
         for (name, route) in &self.scenarios {
             route
                 .validate()

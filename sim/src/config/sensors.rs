@@ -241,6 +241,13 @@ pub struct CameraConfig {
     /// (`rgbd_sync` pairs the two topics by time, nothing registers them); `registered`
     /// reprojects it into the colour camera (pixels outside the depth camera's view: 0).
     pub depth_registration: DepthRegistration,
+    /// With `depth_hfov_deg`: visibility samples per pixel of the depth camera's own pass (1,
+    /// 4 or 8, as `antialias_samples`). 1, the default: one sample at the pixel centre, as
+    /// Gazebo's depth camera renders into a float texture made without multisampling
+    /// (`DepthCamera::CreateDepthTexture` in gazebo-classic `gazebo/rendering/
+    /// DepthCamera.cc` passes no FSAA level, where the colour camera's render texture
+    /// asks for 4x).
+    pub depth_antialias_samples: usize,
     /// `None` (ours): colour is rendered to the horizon. A distance: the colour camera's
     /// far clip plane (optical-axis depth); beyond it the background shows (Gazebo's
     /// `<clip><far>10.0</far>` of the Kinect's `camera` sensor).
@@ -303,6 +310,7 @@ impl Default for CameraConfig {
             sun_azimuth_deg: 30.0,
             shadows: true,
             antialias_samples: 4,
+            depth_antialias_samples: 1,
             filter_materials: true,
             depth_hfov_deg: None,
             depth_registration: DepthRegistration::Stretched,

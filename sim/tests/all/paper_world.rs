@@ -406,6 +406,7 @@ fn a_depth_pass_gives_the_colour_passes_depth_bit_for_bit() {
         let two = CameraConfig {
             depth_hfov_deg: Some(one.hfov_deg),
             depth_registration: DepthRegistration::Stretched,
+            depth_antialias_samples: samples,
             ..one.clone()
         };
         let a = RgbdCamera::new(&one, &world).render(&base, &mut stream(3, "c"));
