@@ -6,7 +6,7 @@ the 95 % Wilson score interval (the formula of vinebench's eval::Rate: Wilson, J
 and the ATE RMSE mean ± sample std. Then every false loop and wrong join, with its frames.
 
     python3 scripts/study-rates.py [--kept DIR] [--out FILE]
-    python3 scripts/study-rates.py --missing configs/study/rates/X.toml --kept DIR/X
+    python3 scripts/study-rates.py --resume configs/study/rates/X.toml --kept DIR/X
 """
 
 import argparse
@@ -41,33 +41,82 @@ def cell_of(sweep, cell):
     return (cell["scenario"].upper(), fence, variation, system)
 
 
-def missing_seeds(sweep_file, kept):
-    """The seeds of `sweep_file` with fewer kept runs (any status) in `kept` than the sweep
-    has points of its axes: what is left to run, whatever build made the kept ones (a
-    sweep's own resume keys on the plugin's bytes, which change with every rebuild)."""
+def toml_text(v):
+    """A TOML value as the sweep prints it in a run's `point` (and as TOML reads it back)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_text(x) for x in v) + "]"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return repr(v)
+
+
+def points_of(cfg):
+    """Every point of a sweep file's axes as [(key, value)], the last axis fastest."""
+    points = [[]]
+    for key, values in cfg.get("axes", {}).items():
+        points = [p + [(key, v)] for p in points for v in values]
+    return points
+
+
+def same_point(kept_point, point):
+    """Whether a kept run's point is this point: equal on every key the kept run names (a
+    key the sweep pins later, with one value, is absent from runs kept before it)."""
+    kept = dict(kept_point)
+    wanted = {k: toml_text(v) for k, v in point}
+    return all(wanted.get(k) == v for k, v in kept.items())
+
+
+def resume_files(sweep_file, kept, write_dir):
+    """For every point of `sweep_file`'s axes with seeds not kept yet in `kept` (any
+    status, whatever build made them: a sweep's own resume keys on the plugin's bytes,
+    which change with every rebuild), a copy of the sweep narrowed to that point and those
+    seeds, written beside it in `write_dir` (so that its relative paths still hold).
+    Returns their paths."""
+    import re
     import tomllib
 
-    cfg = tomllib.loads(Path(sweep_file).read_text())
-    points = 1
-    for values in cfg.get("axes", {}).values():
-        points *= len(values)
-    points *= len(cfg.get("scenarios", [])) * len(cfg.get("plugins", []))
-    have = {}
-    for cell_json in Path(kept).glob("*/cell.json"):
-        seed = json.loads(cell_json.read_text())["seed"]
-        have[seed] = have.get(seed, 0) + 1
-    return [s for s in cfg["seeds"] if have.get(s, 0) < points]
+    path = Path(sweep_file)
+    text = path.read_text()
+    cfg = tomllib.loads(text)
+    runs = [json.loads(c.read_text()) for c in Path(kept).glob("*/cell.json")]
+    plugins = len(cfg.get("plugins", [])) * len(cfg.get("scenarios", []))
+    written = []
+    for i, point in enumerate(points_of(cfg)):
+        have = {}
+        for run in runs:
+            if same_point(run["point"], point):
+                have[run["seed"]] = have.get(run["seed"], 0) + 1
+        missing = [s for s in cfg["seeds"] if have.get(s, 0) < plugins]
+        if not missing:
+            continue
+        narrowed = re.sub(r"(?m)^seeds = .*$", f"seeds = {toml_text(missing)}", text)
+        for key, value in point:
+            narrowed, n = re.subn(rf'(?m)^"{re.escape(key)}" = .*$',
+                                  f'"{key}" = [{toml_text(value)}]', narrowed)
+            assert n == 1, f"{sweep_file}: axis {key} not found on a line of its own"
+        assert tomllib.loads(narrowed)["seeds"] == missing
+        out = Path(write_dir) / f".{path.stem}.resume-{i}.toml"
+        out.write_text(narrowed)
+        written.append(out)
+    kept_points = [r["point"] for r in runs]
+    stray = [p for p in kept_points if not any(same_point(p, q) for q in points_of(cfg))]
+    assert not stray, f"{kept}: kept runs at points the sweep no longer has: {stray}"
+    return written
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--kept", default="docs/hroob/rates/runs")
     ap.add_argument("--out", default="docs/hroob/rates.md")
-    ap.add_argument("--missing", metavar="SWEEP.toml",
-                    help="print the seeds of this sweep not yet kept in --kept (its folder) and stop")
+    ap.add_argument("--resume", metavar="SWEEP.toml",
+                    help="write beside it one sweep file per point of its axes with seeds not yet "
+                         "kept in --kept (its folder), print their paths and stop")
     args = ap.parse_args()
-    if args.missing:
-        print(" ".join(str(s) for s in missing_seeds(args.missing, args.kept)))
+    if args.resume:
+        for f in resume_files(args.resume, args.kept, Path(args.resume).parent):
+            print(f)
         return
     kept, out = Path(args.kept), Path(args.out)
     cells, failed, events = {}, {}, []

@@ -60,16 +60,17 @@ sweeps=("$@")
 [ ${#sweeps[@]} -gt 0 ] || sweeps=("${all[@]}")
 for s in "${sweeps[@]}"; do
     file="configs/study/rates/$s.toml"
-    # Only the seeds not kept yet, whatever build ran the kept ones: a sweep's own resume
-    # keys its runs on the plugin library's bytes, which change with every rebuild.
-    missing=$(python3 scripts/study-rates.py --missing "$file" --kept "$kept/$s")
-    [ -n "$missing" ] || { echo "$s: every run kept"; continue; }
-    resume="configs/study/rates/.$s.resume.toml"
-    sed "s/^seeds = .*/seeds = [$(echo "$missing" | sed 's/ /, /g')]/" "$file" > "$resume"
+    # Only the seeds not kept yet, point by point of the axes, whatever build ran the kept
+    # ones: a sweep's own resume keys its runs on the plugin library's bytes, which change
+    # with every rebuild.
+    resumes=$(python3 scripts/study-rates.py --resume "$file" --kept "$kept/$s")
+    [ -n "$resumes" ] || { echo "$s: every run kept"; continue; }
     jobs=2
     [[ $s == orbslam3-* ]] && jobs=1
-    "$vb" sweep "$resume" --out "$results/$s" --jobs "$jobs" --allow-failures || true
-    rm -f "$resume"
-    save
+    for resume in $resumes; do
+        "$vb" sweep "$resume" --out "$results/$s" --jobs "$jobs" --allow-failures || true
+        rm -f "$resume"
+        save
+    done
 done
 python3 scripts/study-rates.py --kept "$kept" --out docs/hroob/rates.md

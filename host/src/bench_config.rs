@@ -128,6 +128,13 @@ pub struct BenchConfig {
     /// once per run (default). The data are the same either way.
     #[serde(default = "default_share")]
     pub share_simulation: bool,
+    /// Record each scenario once (an MCAP of every sensor its runs take) and replay it to
+    /// each run, instead of simulating live (`runner::record`): the simulation's cost paid
+    /// once whatever the number of systems, recorded ahead at the lowest CPU priority so that
+    /// a paced system has the cores while it runs. Recordings are removed after their runs
+    /// (kept on Ctrl-C, for a resumed sweep). `--record-once` sets it.
+    #[serde(default)]
+    pub record_once: bool,
     /// The published table this bench reproduces (relative to this file; CSV with
     /// `scenario,system,max,mean,median,rmse,std`): its figures are shown beside ours in
     /// the printed table, `table.md` and the report, for the plugins whose label matches.

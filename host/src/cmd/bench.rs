@@ -32,6 +32,10 @@ pub struct BenchArgs {
     /// exit code is 3 then.
     #[arg(long)]
     pub allow_failures: bool,
+    /// Record each scenario once and replay it to every run (the file's `record_once`):
+    /// the simulation paid once, recorded ahead at the lowest CPU priority.
+    #[arg(long)]
+    pub record_once: bool,
 }
 
 /// Runs at once when nobody says: one per core.
@@ -83,6 +87,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         dataset: None,
         max_time_s: max_time_s.or(cfg.max_time_s),
         share_simulation: cfg.share_simulation,
+        // Beside the results folder, not in it: the results are moved into place whole.
+        record_once: (cfg.record_once || args.record_once)
+            .then(|| PathBuf::from(format!("{}.recordings", out.display()))),
         bars: true,
     };
     let outcomes = bench(&plan, &out, &labels, cfg.paper_table.as_deref())?;

@@ -114,6 +114,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         max_time_s,
         // One run: nothing to share.
         share_simulation: false,
+        record_once: None,
         bars: true,
     };
     let outcomes = crate::cmd::bench::bench(&plan, &out, std::slice::from_ref(&label), None)?;

@@ -46,6 +46,10 @@ pub struct SweepArgs {
     /// the exit code is 3 then.
     #[arg(long)]
     pub allow_failures: bool,
+    /// Record each scenario once and replay it to every run (the file's `record_once`):
+    /// the simulation paid once, recorded ahead at the lowest CPU priority.
+    #[arg(long)]
+    pub record_once: bool,
 }
 
 /// `vinebench sweep-task TASKS.json --index I`: one array task (started by Slurm).
@@ -62,7 +66,8 @@ pub fn run_task(args: &SweepTaskArgs) -> anyhow::Result<()> {
 
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let max_time_s = crate::cmd::sim_args::max_time_flag(args.max_time)?;
-    let sweep = Sweep::load(&args.file, max_time_s)?;
+    let mut sweep = Sweep::load(&args.file, max_time_s)?;
+    sweep.cfg.record_once |= args.record_once;
     let out = args.out.clone().unwrap_or_else(|| {
         let stem = args
             .file

@@ -65,3 +65,22 @@ pub mod files {
     /// bench resume without running it again.
     pub const STATUS: &str = "status.txt";
 }
+
+/// Hex SHA-256 of some bytes, first 16 digits (64 bits: no collision in any sweep).
+pub fn short_hash(bytes: &[u8]) -> String {
+    use sha2::Digest as _;
+    let digest = sha2::Sha256::digest(bytes);
+    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Hash of the running `vinebench` executable.
+pub fn exe_hash() -> anyhow::Result<String> {
+    let exe = anyhow::Context::context(std::env::current_exe(), "the vinebench executable")?;
+    file_hash(&exe)
+}
+
+/// Hex SHA-256 of a file's bytes, first 16 digits.
+pub fn file_hash(path: &std::path::Path) -> anyhow::Result<String> {
+    let bytes = anyhow::Context::with_context(std::fs::read(path), || path.display().to_string())?;
+    Ok(short_hash(&bytes))
+}

@@ -23,6 +23,11 @@ pub struct Job {
     /// simulator; the scenario and world still give the rig and the nominal duration.
     #[serde(default)]
     pub dataset: Option<PathBuf>,
+    /// The dataset is the plan's own recording of this world, scenario and seed
+    /// (`record_once`): the very stream the simulator gives, so that the run's pictures may
+    /// be rendered again from its world.
+    #[serde(default)]
+    pub recorded: bool,
     /// Stop feeding at this simulated time, seconds (`--max-time`, `max_time_s`): ground
     /// truth and evaluation then cover the route up to there. `None`: the whole route.
     #[serde(default)]

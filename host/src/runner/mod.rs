@@ -8,6 +8,7 @@ mod frames;
 pub mod interrupt;
 pub mod job;
 mod loops;
+mod record;
 mod supervise;
 pub mod timing;
 pub mod worker;
@@ -56,6 +57,10 @@ pub struct Plan {
     /// Feed the runs of a scenario that need the same sensors from one simulation
     /// ([`feed`]) instead of one per run.
     pub share_simulation: bool,
+    /// Record each scenario once into this folder and replay the recording to its runs
+    /// ([`record`]: recorded ahead at the lowest CPU priority, removed after its runs)
+    /// instead of simulating live; takes the place of `share_simulation`. Not with `dataset`.
+    pub record_once: Option<PathBuf>,
     /// Draw a progress bar per run on the terminal (a sweep draws its own instead).
     pub bars: bool,
 }
@@ -156,7 +161,34 @@ fn run_all(
     let style = ProgressStyle::with_template("{prefix:>28} [{bar:30}] {percent:>3}% {msg}")
         .expect("valid template")
         .progress_chars("=> ");
-    let groups = group_runs(plan, &lengths);
+    let (groups, recordings) = match &plan.record_once {
+        Some(dir) if plan.dataset.is_none() => {
+            let dir = std::path::absolute(dir)?;
+            std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
+            let world_text = config.to_toml_string();
+            let build = crate::results::exe_hash()?;
+            group_recorded(plan, &lengths, &|scenario, sensors| {
+                record::recording_path(
+                    &dir,
+                    &world_text,
+                    scenario,
+                    plan.seed,
+                    plan.max_time_s,
+                    sensors,
+                    &build,
+                )
+            })
+        }
+        _ => (group_runs(plan, &lengths), Vec::new()),
+    };
+    let mut recording_of: Vec<Option<&record::Recording>> = vec![None; plan.runs.len()];
+    for g in &groups {
+        if let Some(k) = g.recording {
+            g.runs
+                .iter()
+                .for_each(|&i| recording_of[i] = Some(&recordings[k]));
+        }
+    }
     on_schedule(
         &groups
             .iter()
@@ -181,7 +213,11 @@ fn run_all(
             params_toml: run.params_toml.clone(),
             out_dir: dir.clone(),
             memory_limit_mb: plan.memory_limit_mb,
-            dataset: plan.dataset.as_ref().map(std::path::absolute).transpose()?,
+            dataset: match recording_of[i] {
+                Some(rec) => Some(rec.path.clone()),
+                None => plan.dataset.as_ref().map(std::path::absolute).transpose()?,
+            },
+            recorded: recording_of[i].is_some(),
             max_time_s: plan.max_time_s,
             fed: fed[i],
             pace: run.pace,
@@ -203,7 +239,18 @@ fn run_all(
         free.1.notify_all();
     };
     let world = &world;
+    let pipeline = record::Pipeline::new(recordings.len(), plan.jobs.max(1) + 1);
+    let world_file = plan.world.as_ref().map(std::path::absolute).transpose()?;
     std::thread::scope(|scope| {
+        if !recordings.is_empty() {
+            let (pipeline, recordings, world_file) = (&pipeline, &recordings, &world_file);
+            scope.spawn(move || {
+                let refs: Vec<&record::Recording> = recordings.iter().collect();
+                pipeline.make_all(&refs, &|rec| {
+                    record::record(rec, world_file.as_deref(), plan.seed, plan.max_time_s)
+                });
+            });
+        }
         for group in &groups {
             let need = group.runs.len().min(plan.jobs.max(1));
             let mut slots = free.0.lock().expect("no panics while holding the lock");
@@ -216,6 +263,7 @@ fn run_all(
             *slots -= need;
             drop(slots);
             let (dirs, progress, outcomes, release) = (&dirs, &progress, &outcomes, &release);
+            let (pipeline, recordings) = (&pipeline, &recordings);
             if interrupt::interrupted() {
                 // Nothing new starts after Ctrl-C; these runs were not run.
                 let mut outcomes = outcomes.lock().expect("no panics while holding the lock");
@@ -248,6 +296,10 @@ fn run_all(
                 };
                 if group.shared {
                     run_shared(group, plan, config, world, dirs, progress, &done);
+                } else if let Some(k) = group.recording {
+                    let outcome = pipeline.wait(k);
+                    run_recorded(group, plan, dirs, progress, need, outcome, &done);
+                    pipeline.release(&recordings[k]);
                 } else {
                     for &i in &group.runs {
                         let outcome = run_one(&plan.runs[i], &dirs[i], plan, &progress[i]);
@@ -257,6 +309,10 @@ fn run_all(
             });
         }
     });
+    if let Some(dir) = &plan.record_once {
+        // Gone once empty: every recording was replayed and removed.
+        let _ = std::fs::remove_dir(dir);
+    }
     Ok(outcomes
         .into_inner()
         .expect("no panics while holding the lock")
@@ -271,6 +327,8 @@ struct Group {
     runs: Vec<usize>,
     shared: bool,
     sensors: Vec<sim::SensorSet>,
+    /// The recording its runs replay (`record_once`), by index in the plan's recordings.
+    recording: Option<usize>,
 }
 
 /// A worker that takes no message for this long is cut off from its group's simulation
@@ -304,14 +362,7 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
                 .or_insert_with(|| probe_sensors(r))
         })
         .collect();
-    let scenario_len = |s: &str| {
-        plan.scenarios
-            .iter()
-            .position(|x| x == s)
-            .and_then(|k| lengths.get(k))
-            .copied()
-            .unwrap_or(0)
-    };
+    let scenario_len = |s: &str| scenario_len(plan, lengths, s);
     // (camera, lidar, route length, scenario): runs with the same key may share.
     let mut keyed: BTreeMap<(bool, bool, i64, &str), Vec<usize>> = BTreeMap::new();
     let mut groups = Vec::new();
@@ -330,6 +381,7 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
                 runs: vec![i],
                 shared: false,
                 sensors: Vec::new(),
+                recording: None,
             }),
         }
     }
@@ -339,11 +391,117 @@ fn group_runs(plan: &Plan, lengths: &[i64]) -> Vec<Group> {
             // A run alone simulates in its own worker, as without sharing.
             shared: runs.len() > 1,
             sensors: runs.iter().map(|&i| sensors[i].expect("keyed")).collect(),
+            recording: None,
             runs,
         })
         .collect();
     shared.append(&mut groups);
     shared
+}
+
+/// A scenario's route length in `lengths` (0 if unknown).
+fn scenario_len(plan: &Plan, lengths: &[i64], scenario: &str) -> i64 {
+    plan.scenarios
+        .iter()
+        .position(|x| x == scenario)
+        .and_then(|k| lengths.get(k))
+        .copied()
+        .unwrap_or(0)
+}
+
+/// With `record_once`: one group per scenario, longest route first, whose runs replay one
+/// recording of every sensor they take; a plugin whose sensors cannot be read (it fails to
+/// load) runs alone on the live simulation, to fail in its own worker.
+fn group_recorded(
+    plan: &Plan,
+    lengths: &[i64],
+    path: &dyn Fn(&str, sim::SensorSet) -> PathBuf,
+) -> (Vec<Group>, Vec<record::Recording>) {
+    let mut probed: BTreeMap<(&Path, &str), Option<sim::SensorSet>> = BTreeMap::new();
+    let mut by_scenario: BTreeMap<(i64, &str), Vec<(usize, sim::SensorSet)>> = BTreeMap::new();
+    let mut alone = Vec::new();
+    for (i, run) in plan.runs.iter().enumerate() {
+        let sensors = *probed
+            .entry((run.plugin.as_path(), run.params_toml.as_str()))
+            .or_insert_with(|| probe_sensors(run));
+        match sensors {
+            Some(set) => by_scenario
+                .entry((-scenario_len(plan, lengths, &run.scenario), &run.scenario))
+                .or_default()
+                .push((i, set)),
+            None => alone.push(Group {
+                runs: vec![i],
+                shared: false,
+                sensors: Vec::new(),
+                recording: None,
+            }),
+        }
+    }
+    let mut groups = Vec::new();
+    let mut recordings = Vec::new();
+    for ((_, scenario), runs) in by_scenario {
+        let sensors = runs.iter().fold(
+            sim::SensorSet {
+                ground_truth: true,
+                ..sim::SensorSet::default()
+            },
+            |all, &(_, set)| record::union(all, set),
+        );
+        groups.push(Group {
+            runs: runs.iter().map(|&(i, _)| i).collect(),
+            shared: false,
+            sensors: runs.iter().map(|&(_, set)| set).collect(),
+            recording: Some(recordings.len()),
+        });
+        recordings.push(record::Recording {
+            path: path(scenario, sensors),
+            scenario: scenario.to_owned(),
+            sensors,
+        });
+    }
+    groups.append(&mut alone);
+    (groups, recordings)
+}
+
+/// Runs a recorded group's runs on their recording once it is made (`made`: its outcome),
+/// `at_once` of them at a time; if it could not be made, each fails with the reason.
+fn run_recorded(
+    group: &Group,
+    plan: &Plan,
+    dirs: &[PathBuf],
+    progress: &[ProgressBar],
+    at_once: usize,
+    made: Result<(), String>,
+    done: &(dyn Fn(usize, RunOutcome) + Sync),
+) {
+    if let Err(why) = made {
+        for &i in &group.runs {
+            done(
+                i,
+                finish_run(&plan.runs[i], &dirs[i], plan, Err(why.clone())),
+            );
+        }
+        return;
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..at_once.max(1) {
+            scope.spawn(|| {
+                loop {
+                    let n = next.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                    let Some(&i) = group.runs.get(n) else {
+                        break;
+                    };
+                    let outcome = if interrupt::interrupted() {
+                        not_run(&plan.runs[i], &dirs[i], plan)
+                    } else {
+                        run_one(&plan.runs[i], &dirs[i], plan, &progress[i])
+                    };
+                    done(i, outcome);
+                }
+            });
+        }
+    });
 }
 
 /// The sensors a run's plugin library asks for with its parameters, read in a child process

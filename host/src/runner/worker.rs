@@ -185,6 +185,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let simulated = total_ns as f64 * 1e-9;
     let mut report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
     report.source = match (&job.dataset, job.fed) {
+        (Some(_), _) if job.recorded => "recording",
         (Some(_), _) => "dataset",
         (None, true) => "shared simulation",
         (None, false) => "simulation",

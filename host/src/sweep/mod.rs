@@ -14,6 +14,8 @@
 //! - `worlds/<key>.toml`: the resolved simulator configuration of each point of the axes;
 //! - `runs/<key>/`: one finished run (the files of a bench's run folder, and `cell.json`);
 //! - `.work/`: runs in progress, removed when their process is gone;
+//! - `recordings/`: with `record_once`, the recordings of the cells being run (each removed
+//!   once its runs end; kept by a stopped sweep, for it to replay when it resumes);
 //! - `sweep.json`, `sweep.csv`, `speed.csv`, `sweep.md`, `plots/`: the aggregate
 //!   ([`aggregate`]);
 //! - `slurm/`: the job arrays submitted ([`slurm`]).
@@ -27,10 +29,11 @@ use std::time::Duration;
 
 use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
-use sha2::Digest as _;
 
 use crate::bench_config::BenchConfig;
-use crate::results::{RunOutcome, RunStatus, SWEEP_MARKER as MARKER, write_atomic};
+use crate::results::{
+    RunOutcome, RunStatus, SWEEP_MARKER as MARKER, exe_hash, file_hash, short_hash, write_atomic,
+};
 use crate::runner::{Plan, PlannedRun};
 
 /// One axis: a world key by its dotted path and the values it takes.
@@ -99,23 +102,6 @@ pub struct Sweep {
     /// Hash of the `vinebench` executable that expanded the sweep: the build of the runs it
     /// makes.
     pub exe_hash: String,
-}
-
-/// Hex SHA-256 of some bytes, first 16 digits (64 bits: no collision in any sweep).
-fn short_hash(bytes: &[u8]) -> String {
-    let digest = sha2::Sha256::digest(bytes);
-    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// Hash of the running `vinebench` executable.
-pub fn exe_hash() -> anyhow::Result<String> {
-    let exe = std::env::current_exe().context("the vinebench executable")?;
-    file_hash(&exe)
-}
-
-fn file_hash(path: &Path) -> anyhow::Result<String> {
-    let bytes = std::fs::read(path).with_context(|| path.display().to_string())?;
-    Ok(short_hash(&bytes))
 }
 
 /// Sets `path` (dotted) in `table` to `value`, creating tables on the way; refuses to
@@ -438,6 +424,7 @@ impl Sweep {
                     dataset: None,
                     max_time_s: self.cfg.max_time_s,
                     share_simulation: self.cfg.share_simulation,
+                    record_once: self.cfg.record_once.then(|| out.join(RECORDINGS)),
                     bars: false,
                 };
                 (plan, cells)
@@ -445,6 +432,10 @@ impl Sweep {
             .collect()
     }
 }
+
+/// The folder of a sweep's recordings (`record_once`): what a stopped sweep had recorded
+/// and not yet replayed, for it to replay when it resumes.
+pub const RECORDINGS: &str = "recordings";
 
 /// Where a cell's finished run lives.
 pub fn run_dir(out: &Path, key: &str) -> PathBuf {

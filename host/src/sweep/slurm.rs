@@ -193,7 +193,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
     })?;
     let out = &tasks.out;
     anyhow::ensure!(
-        super::exe_hash()? == tasks.exe_hash,
+        crate::results::exe_hash()? == tasks.exe_hash,
         "{}: submitted by another vinebench build than this one ({}); submit the sweep again",
         tasks_path.display(),
         std::env::current_exe()?.display()
@@ -221,6 +221,8 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         dataset: None,
         max_time_s: tasks.max_time_s,
         share_simulation: false,
+        // One run a task: nothing to replay to another.
+        record_once: None,
         bars: false,
     };
     let job = std::env::var("SLURM_ARRAY_JOB_ID").unwrap_or_else(|_| "task".into());

@@ -715,7 +715,8 @@ fn faulty_plugins_cost_their_own_run_only() {
 /// One simulation feeds the runs of a scenario that need the same sensors, however many
 /// they are: three lio-sam runs with two jobs share one lidar simulation, the two odometry
 /// baselines another, and every file they write is the same, byte for byte, as when each
-/// run simulates for itself.
+/// run simulates for itself — or when the scenario is recorded once and replayed to each
+/// (`record_once`), the recording removed afterwards.
 #[test]
 fn a_shared_simulation_gives_every_run_its_own_data() {
     let tmp = tempfile::tempdir().expect("tempdir");
@@ -750,8 +751,31 @@ fn a_shared_simulation_gives_every_run_its_own_data() {
         "unshared bench failed: {}",
         text(&o.stderr)
     );
+    // Recorded once (lidar, wheels, IMU and ground truth in one MCAP) and replayed to each.
+    let (o, recorded) = run_bench(
+        tmp.path(),
+        "recorded",
+        &format!(
+            "{head}record_once = true
+{plugins}"
+        ),
+    );
+    assert!(
+        o.status.success(),
+        "recorded bench failed: {}",
+        text(&o.stderr)
+    );
+    assert!(
+        !tmp.path().join("results-recorded.recordings").exists(),
+        "the recording is removed after its runs"
+    );
     for label in ["lio-a", "lio-b", "lio-c", "odom", "odom-imu"] {
         let run = |out: &Path| out.join("s1").join(label);
+        assert_eq!(
+            json(&run(&recorded).join("timing.json"))["source"],
+            "recording",
+            "{label} was fed the plan's recording"
+        );
         assert_eq!(
             json(&run(&shared).join("timing.json"))["source"],
             "shared simulation",
@@ -801,6 +825,11 @@ fn a_shared_simulation_gives_every_run_its_own_data() {
             assert!(
                 a == b,
                 "s1/{label}/{f} differs between shared and own simulation"
+            );
+            let c = std::fs::read(run(&recorded).join(f)).expect("recorded file");
+            assert!(
+                c == b,
+                "s1/{label}/{f} differs between recorded and own simulation"
             );
         }
     }
