@@ -241,9 +241,11 @@ fn bench_in(
         ..plan.clone()
     };
     // Each run's predicted duration: its route's length times its system's cost in the
-    // previous results at `out`, if any (Progress says how the estimate uses them).
-    let predicted = crate::runner::route_seconds(&sub).ok().map(|route_s| {
-        let costs = previous_costs(out);
+    // previous results at `out`, if any (Progress says how the estimate uses them); none:
+    // each system's speed is measured as it runs.
+    let route_s = crate::runner::route_seconds(&sub).ok();
+    let costs = previous_costs(out);
+    let predicted = route_s.as_ref().map(|route_s| {
         let fallback = if costs.is_empty() {
             1.0
         } else {
@@ -255,7 +257,16 @@ fn bench_in(
             .map(|(run, s)| s * costs.get(&run.label).copied().unwrap_or(fallback))
             .collect()
     });
-    let progress = Progress::new(sub.runs.len(), predicted, sub.jobs, false);
+    let mut progress = Progress::new(sub.runs.len(), predicted, sub.jobs, false);
+    if let Some(route_s) = route_s.filter(|_| costs.is_empty()) {
+        progress = progress.by_system(
+            route_s
+                .into_iter()
+                .zip(&sub.runs)
+                .map(|(s, run)| (s, run.label.clone()))
+                .collect(),
+        );
+    }
     let ran = if sub.runs.is_empty() {
         Vec::new()
     } else {
@@ -263,6 +274,7 @@ fn bench_in(
             &sub,
             staging.dir(),
             &|schedule| progress.set_schedule(schedule),
+            &|i, f| progress.observe(i, f),
             &|i, outcome| {
                 progress.finished(
                     i,

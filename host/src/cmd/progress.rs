@@ -1,6 +1,7 @@
 //! Progress of a bench or sweep: a bar on a terminal, else one line per finished run (so that
 //! `vinebench bench FILE > log` says how far it is).
 
+use std::collections::BTreeMap;
 use std::io::IsTerminal as _;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -22,6 +23,11 @@ use crate::results::{RunOutcome, RunStatus};
 /// and a group with a finished run as ended. Runs measured before predict themselves from
 /// the first finished run on; a route length alone cannot tell a camera system's hour from
 /// a baseline's seconds.
+///
+/// Without previous results ([`Progress::by_system`]) each system's speed is measured as it
+/// runs instead: its wall seconds per simulated second from its ended runs, else from how
+/// far its running ones got in how long (`runner::OnProgress`); a run's time left is its
+/// route left times its system's speed, a system not seen yet takes the mean of those seen.
 #[derive(Debug)]
 pub struct Progress {
     total: usize,
@@ -30,6 +36,12 @@ pub struct Progress {
     jobs: usize,
     /// Which runs have ended, and the sums of their predicted and measured durations.
     ended: Mutex<(Vec<bool>, f64, f64)>,
+    /// Per system: each run's route, simulated seconds, and its system's label; empty when
+    /// the predictions came from previous results.
+    systems: Vec<(f64, String)>,
+    /// Per run: its measured duration once ended, and how far it had got when first and
+    /// last seen running (seconds since the start, fraction of its route).
+    seen: Mutex<Vec<Seen>>,
     /// How the runs start, once the runner has said (`runner::Schedule`).
     schedule: Mutex<Option<crate::runner::Schedule>>,
     started: Instant,
@@ -61,11 +73,109 @@ impl Progress {
             predicted: predicted.unwrap_or_else(|| vec![1.0; total]),
             jobs: jobs.max(1),
             ended: Mutex::new((vec![false; total], 0.0, 0.0)),
+            systems: Vec::new(),
+            seen: Mutex::new(vec![Seen::default(); total]),
             schedule: Mutex::new(None),
             started: Instant::now(),
             bar,
             terminal,
         }
+    }
+
+    /// Estimates by each system's speed measured as it runs (no previous results): run `i`
+    /// is fed `runs[i].0` simulated seconds by the system labelled `runs[i].1`.
+    pub fn by_system(mut self, runs: Vec<(f64, String)>) -> Self {
+        if runs.len() == self.total {
+            self.systems = runs;
+        }
+        self
+    }
+
+    /// Run `index` has been fed the fraction `f` of its route (`runner::OnProgress`).
+    pub fn observe(&self, index: usize, f: f64) {
+        self.observe_at(index, f, self.started.elapsed().as_secs_f64());
+    }
+
+    /// [`Progress::observe`] at `t` seconds since the start.
+    fn observe_at(&self, index: usize, f: f64, t: f64) {
+        let mut seen = self.seen.lock().expect("no panics while holding the lock");
+        if let Some(s) = seen.get_mut(index)
+            && f.is_finite()
+        {
+            s.first.get_or_insert((t, f));
+            s.last = Some((t, f));
+        }
+    }
+
+    /// The time left by each system's measured speed ([`Progress::by_system`]); `None`
+    /// while no system's speed is known.
+    fn time_left_by_system(&self, ended: &[bool]) -> Option<f64> {
+        let seen = self.seen.lock().expect("no panics while holding the lock");
+        // Wall seconds per simulated second, per system: its ended runs' (all of them
+        // together), else its running runs' progress so far (the one furthest on).
+        let mut cost: BTreeMap<&str, (f64, f64)> = BTreeMap::new();
+        for (i, (route_s, system)) in self.systems.iter().enumerate() {
+            if let Some(wall) = seen[i].measured.filter(|_| ended[i]) {
+                let c = cost.entry(system).or_insert((0.0, 0.0));
+                *c = (c.0 + wall, c.1 + route_s);
+            }
+        }
+        for (i, (route_s, system)) in self.systems.iter().enumerate() {
+            if ended[i] || cost.contains_key(system.as_str()) {
+                continue;
+            }
+            if let (Some((t0, f0)), Some((t1, f1))) = (seen[i].first, seen[i].last)
+                && f1 - f0 >= MIN_SEEN
+                && t1 > t0
+            {
+                let fed = (f1 - f0) * route_s;
+                let c = cost.entry(system).or_insert((0.0, 0.0));
+                if c.1 < fed {
+                    *c = (t1 - t0, fed);
+                }
+            }
+        }
+        let cost: BTreeMap<&str, f64> = cost
+            .into_iter()
+            .filter(|(_, (_, s))| *s > 0.0)
+            .map(|(k, (w, s))| (k, w / s))
+            .collect();
+        if cost.is_empty() {
+            return None;
+        }
+        let mean = cost.values().sum::<f64>() / cost.len() as f64;
+        let left: Vec<f64> = self
+            .systems
+            .iter()
+            .enumerate()
+            .map(|(i, (route_s, system))| {
+                if ended[i] {
+                    return 0.0;
+                }
+                let fed = seen[i].last.map_or(0.0, |(_, f)| f.clamp(0.0, 1.0));
+                cost.get(system.as_str()).copied().unwrap_or(mean) * route_s * (1.0 - fed)
+            })
+            .collect();
+        let schedule = self
+            .schedule
+            .lock()
+            .expect("no panics while holding the lock");
+        let (sum, longest) = match schedule.as_ref() {
+            // A group not yet ended: its longest run left, for the slots it takes.
+            Some(groups) => groups
+                .iter()
+                .map(|(runs, slots)| {
+                    let d = runs
+                        .iter()
+                        .filter_map(|&i| left.get(i))
+                        .copied()
+                        .fold(0.0, f64::max);
+                    (d * *slots as f64, d)
+                })
+                .fold((0.0, 0.0), |(s, l), (w, d)| (s + w, f64::max(l, d))),
+            None => (left.iter().sum(), left.iter().copied().fold(0.0, f64::max)),
+        };
+        Some((sum / self.jobs as f64).max(longest))
     }
 
     /// How the runs will start (from the runner, before any does).
@@ -90,6 +200,19 @@ impl Progress {
         };
         if let Some(flag) = flags.get_mut(index) {
             *flag = true;
+        }
+        if !self.systems.is_empty() {
+            if let Some(s) = self
+                .seen
+                .lock()
+                .expect("no panics while holding the lock")
+                .get_mut(index)
+            {
+                s.measured = measured_s.filter(|m| m.is_finite() && *m > 0.0);
+            }
+            if let Some(left) = self.time_left_by_system(flags) {
+                return left;
+            }
         }
         let predicted = self.predicted.get(index).copied().unwrap_or(0.0);
         if let Some(m) = measured_s.filter(|m| m.is_finite() && *m > 0.0)
@@ -181,6 +304,19 @@ impl Progress {
     }
 }
 
+/// What was seen of a run: its measured duration once ended, and (seconds since the start,
+/// fraction of its route fed) when first and last seen running.
+#[derive(Debug, Clone, Copy, Default)]
+struct Seen {
+    measured: Option<f64>,
+    first: Option<(f64, f64)>,
+    last: Option<(f64, f64)>,
+}
+
+/// The least progress (a fraction of its route) a running run must have made between two
+/// looks before its speed counts.
+const MIN_SEEN: f64 = 0.01;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -224,6 +360,41 @@ mod tests {
         // (its own length: max(10 / 2, 10)).
         let left = p.time_left(2, Some(50.0), 300.0, 3);
         assert!((left - 10.0 * 340.0 / 240.0).abs() < 1e-9, "{left}");
+    }
+
+    /// Without previous results, each system's speed as measured: lio-sam (routes of 100 s)
+    /// seen half way after 100 s costs 2 s a simulated second, and so does the baseline
+    /// until one of its runs ends (5 s for a 10 s route: 0.5); two slots.
+    #[test]
+    fn without_previous_results_each_systems_speed_is_measured_as_it_runs() {
+        let p = Progress::new(4, Some(vec![100.0, 100.0, 10.0, 10.0]), 2, false).by_system(
+            [
+                (100.0, "lio-sam"),
+                (100.0, "lio-sam"),
+                (10.0, "odom"),
+                (10.0, "odom"),
+            ]
+            .map(|(s, l)| (s, l.to_owned()))
+            .to_vec(),
+        );
+        p.observe_at(0, 0.0, 0.0);
+        p.observe_at(2, 0.0, 0.0);
+        p.observe_at(0, 0.5, 100.0);
+        // Run 2 ends, measured 5 s: lio-sam's runs left are 100 s (half fed) and 200 s,
+        // the other baseline 0.5 * 10 = 5 s: max((100 + 200 + 5) / 2, 200).
+        let left = p.time_left(2, Some(5.0), 100.0, 1);
+        assert!((left - 200.0).abs() < 1e-9, "{left}");
+        // Run 0 ends after 210 s: lio-sam's ended run is its measure (2.1 s/s).
+        let left = p.time_left(0, Some(210.0), 210.0, 2);
+        assert!((left - 210.0).abs() < 1e-9, "{left}");
+        // Too little progress says nothing: a fresh estimate without any speed known falls
+        // back to the time so far per run.
+        let q = Progress::new(2, None, 1, false)
+            .by_system(vec![(10.0, "a".to_owned()), (10.0, "b".to_owned())]);
+        q.observe_at(0, 0.0, 0.0);
+        q.observe_at(0, 0.001, 50.0);
+        let left = q.time_left(usize::MAX, None, 30.0, 1);
+        assert!((left - 30.0).abs() < 1e-9, "{left}");
     }
 
     /// Without any measurement the time so far per run stands in; runs of equal weight may

@@ -73,19 +73,26 @@ pub type OnDone<'a> = &'a (dyn Fn(usize, &RunOutcome) + Sync);
 /// must not exist yet), calling `on_done` as each run ends; returns every run's outcome in
 /// the plan's order.
 pub fn execute(plan: &Plan, work: &Path, on_done: OnDone) -> anyhow::Result<Vec<RunOutcome>> {
-    execute_observed(plan, work, &|_| {}, on_done)
+    execute_observed(plan, work, &|_| {}, &|_, _| {}, on_done)
 }
+
+/// Called as a run moves on, with its index in `Plan::runs` and the fraction of its route
+/// fed so far (0 to 1).
+pub type OnProgress<'a> = &'a (dyn Fn(usize, f64) + Sync);
 
 /// How the runs start: groups of run indices in the order they start, each with the slots
 /// it takes (of the plan's `jobs`), a group's runs together (one shared simulation).
 pub type Schedule = Vec<(Vec<usize>, usize)>;
 
 /// [`execute`], telling `on_schedule` how the runs will start before any does (a progress
-/// estimate follows it: a shared group's runs take as long as its slowest).
+/// estimate follows it: a shared group's runs take as long as its slowest), and
+/// `on_progress` how far each has got as it goes (the estimate's measure of a system's speed
+/// before any of its runs has ended).
 pub fn execute_observed(
     plan: &Plan,
     work: &Path,
     on_schedule: &dyn Fn(&Schedule),
+    on_progress: OnProgress,
     on_done: OnDone,
 ) -> anyhow::Result<Vec<RunOutcome>> {
     let config = sim::SimConfig::load(plan.world.as_deref())?;
@@ -103,7 +110,21 @@ pub fn execute_observed(
         }
     }
     std::fs::create_dir_all(work).with_context(|| work.display().to_string())?;
-    run_all(plan, &config, work, on_schedule, on_done)
+    run_all(plan, &config, work, on_schedule, on_progress, on_done)
+}
+
+/// Where the runs' progress goes: each run's bar, and the caller's observer.
+struct Ticks<'a> {
+    bars: Vec<ProgressBar>,
+    observe: OnProgress<'a>,
+}
+
+impl Ticks<'_> {
+    /// Run `i` has been fed the fraction `f` of its route.
+    fn tick(&self, i: usize, f: f64) {
+        self.bars[i].set_position((f * 1000.0) as u64);
+        (self.observe)(i, f);
+    }
 }
 
 /// Where each scenario of the plan stops, ns: its route's end or the plan's limit.
@@ -144,6 +165,7 @@ fn run_all(
     config: &sim::SimConfig,
     work: &Path,
     on_schedule: &dyn Fn(&Schedule),
+    on_progress: OnProgress,
     on_done: OnDone,
 ) -> anyhow::Result<Vec<RunOutcome>> {
     let world = sim::world::World::from_config(config);
@@ -228,6 +250,10 @@ fn run_all(
         dirs.push(dir);
         progress.push(bar);
     }
+    let ticks = Ticks {
+        bars: progress,
+        observe: on_progress,
+    };
 
     // Groups start in order as soon as enough of the `jobs` slots are free (a group with
     // more runs than `jobs` takes them all); a group gives a slot back whenever it has fewer
@@ -262,7 +288,7 @@ fn run_all(
             }
             *slots -= need;
             drop(slots);
-            let (dirs, progress, outcomes, release) = (&dirs, &progress, &outcomes, &release);
+            let (dirs, ticks, outcomes, release) = (&dirs, &ticks, &outcomes, &release);
             let (pipeline, recordings) = (&pipeline, &recordings);
             if interrupt::interrupted() {
                 // Nothing new starts after Ctrl-C; these runs were not run.
@@ -279,7 +305,7 @@ fn run_all(
             scope.spawn(move || {
                 let left = Mutex::new(group.runs.len());
                 let done = |i: usize, outcome: RunOutcome| {
-                    let bar = &progress[i];
+                    let bar = &ticks.bars[i];
                     match &outcome.status {
                         RunStatus::Ok => bar.finish_with_message("ok"),
                         RunStatus::Failed(why) => {
@@ -295,14 +321,14 @@ fn run_all(
                     }
                 };
                 if group.shared {
-                    run_shared(group, plan, config, world, dirs, progress, &done);
+                    run_shared(group, plan, config, world, dirs, ticks, &done);
                 } else if let Some(k) = group.recording {
                     let outcome = pipeline.wait(k);
-                    run_recorded(group, plan, dirs, progress, need, outcome, &done);
+                    run_recorded(group, plan, dirs, ticks, need, outcome, &done);
                     pipeline.release(&recordings[k]);
                 } else {
                     for &i in &group.runs {
-                        let outcome = run_one(&plan.runs[i], &dirs[i], plan, &progress[i]);
+                        let outcome = run_one(plan, i, &dirs[i], ticks);
                         done(i, outcome);
                     }
                 }
@@ -469,7 +495,7 @@ fn run_recorded(
     group: &Group,
     plan: &Plan,
     dirs: &[PathBuf],
-    progress: &[ProgressBar],
+    ticks: &Ticks,
     at_once: usize,
     made: Result<(), String>,
     done: &(dyn Fn(usize, RunOutcome) + Sync),
@@ -495,7 +521,7 @@ fn run_recorded(
                     let outcome = if interrupt::interrupted() {
                         not_run(&plan.runs[i], &dirs[i], plan)
                     } else {
-                        run_one(&plan.runs[i], &dirs[i], plan, &progress[i])
+                        run_one(plan, i, &dirs[i], ticks)
                     };
                     done(i, outcome);
                 }
@@ -558,7 +584,7 @@ fn run_shared(
     config: &sim::SimConfig,
     world: &sim::world::World,
     dirs: &[PathBuf],
-    progress: &[ProgressBar],
+    ticks: &Ticks,
     done: &(dyn Fn(usize, RunOutcome) + Sync),
 ) {
     let scenario = &plan.runs[group.runs[0]].scenario;
@@ -614,9 +640,8 @@ fn run_shared(
         let watched: Vec<_> = started
             .into_iter()
             .map(|(i, child)| {
-                let bar = &progress[i];
                 scope.spawn(move || {
-                    let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
+                    let on_progress = |f: f64| ticks.tick(i, f);
                     let outcome = supervise::watch(
                         child,
                         &dirs[i],
@@ -668,8 +693,10 @@ fn run_shared(
     });
 }
 
-fn run_one(run: &PlannedRun, dir: &Path, plan: &Plan, bar: &ProgressBar) -> RunOutcome {
-    let on_progress = |f: f64| bar.set_position((f * 1000.0) as u64);
+/// Runs run `i` of the plan in its own worker, in its folder `dir`.
+fn run_one(plan: &Plan, i: usize, dir: &Path, ticks: &Ticks) -> RunOutcome {
+    let run = &plan.runs[i];
+    let on_progress = |f: f64| ticks.tick(i, f);
     let outcome = supervise::supervise(
         dir,
         run.base_dir.as_deref(),
