@@ -43,6 +43,11 @@ pub struct PluginEntry {
     /// or `"realtime"` (no faster than simulated time, for systems with threads of their own).
     #[serde(default)]
     pub pace: crate::runner::Pace,
+    /// Bounded subscriber queues on a paced run, as ROS gives each subscription one:
+    /// `queue_size = 5` (every topic) or `queue_size = { lidar = 2, rgbd = 1 }` (those
+    /// named); a full queue drops its oldest message (`runner::QueueSize`). Default:
+    /// unbounded (nothing is dropped, a slow system falls behind).
+    pub queue_size: Option<crate::runner::QueueSize>,
     /// The plugin's parameters, handed to it verbatim as TOML.
     #[serde(default)]
     pub params: toml::Table,
@@ -70,6 +75,7 @@ pub struct ResolvedPlugin {
     pub library: PathBuf,
     pub params_toml: String,
     pub pace: crate::runner::Pace,
+    pub queue_size: Option<crate::runner::QueueSize>,
     /// The bench file's folder, absolute: what the plugin's relative paths are relative to.
     pub base_dir: PathBuf,
 }
@@ -187,11 +193,17 @@ impl BenchConfig {
                     .unwrap_or_default();
                 let library = crate::plugins::resolve(&what, &dirs)
                     .with_context(|| file.display().to_string())?;
+                if let Some(q) = &entry.queue_size {
+                    q.check(entry.pace).map_err(|why| {
+                        anyhow::anyhow!("{}: plugin {}: {why}", file.display(), entry.label())
+                    })?;
+                }
                 Ok(ResolvedPlugin {
                     label: entry.label(),
                     library,
                     params_toml: toml::to_string(&entry.params)?,
                     pace: entry.pace,
+                    queue_size: entry.queue_size.clone(),
                     base_dir: base_dir.clone(),
                 })
             })

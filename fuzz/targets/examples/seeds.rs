@@ -199,6 +199,7 @@ fn cell(out: &Path) -> Result<()> {
         plugin: "/opt/vinebench/libvinebench_orbslam2.so".into(),
         params_toml: "[orb]\nfeatures = 1000\n".into(),
         pace: vinebench::runner::Pace::Free,
+        queue_size: None,
         base_dir: Some("/opt/vinebench/configs".into()),
         seed: 2,
         point: vec![

@@ -62,6 +62,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 plugin: p.library.clone(),
                 params_toml: p.params_toml.clone(),
                 pace: p.pace,
+                queue_size: p.queue_size.clone(),
+                drops: None,
                 base_dir: Some(p.base_dir.clone()),
             });
         }

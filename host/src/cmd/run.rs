@@ -29,6 +29,15 @@ pub struct RunArgs {
     /// (no faster than simulated time), as a bench file's `pace`.
     #[arg(long, default_value = "free")]
     pub pace: String,
+    /// Bound every topic's subscriber queue to this many messages (needs `--pace
+    /// realtime`): a message arriving while the plugin is busy beyond it drops the oldest,
+    /// as a ROS subscriber does; which were dropped: the run's `dropped.csv`.
+    #[arg(long, value_name = "N")]
+    pub queue_size: Option<usize>,
+    /// Drop exactly the messages this `dropped.csv` (of an earlier run) names: that run's
+    /// drops again, whatever this one's speed.
+    #[arg(long, value_name = "FILE")]
+    pub drops: Option<PathBuf>,
     /// Exit 0 even when the run failed (the results folder says why).
     #[arg(long)]
     pub allow_failures: bool,
@@ -67,6 +76,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let pace: crate::runner::Pace = toml::Value::String(args.pace.clone())
         .try_into()
         .map_err(|_| anyhow::anyhow!("--pace {}: expected free or realtime", args.pace))?;
+    let queue_size = args.queue_size.map(crate::runner::QueueSize::All);
+    if let Some(q) = &queue_size {
+        q.check(pace)
+            .map_err(|why| anyhow::anyhow!("--queue-size: {why}"))?;
+    }
+    if let Some(d) = &args.drops {
+        crate::runner::read_drops(d)?;
+    }
     let align: Align = toml::Value::String(args.align.clone())
         .try_into()
         .map_err(|_| {
@@ -104,6 +121,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             plugin: path,
             params_toml,
             pace,
+            queue_size,
+            drops: args.drops.clone(),
             base_dir: Some(base_dir),
         }],
         jobs: 1,

@@ -64,6 +64,9 @@ pub mod files {
     /// How the run ended (`RunStatus::text`), written as it ends: what lets an interrupted
     /// bench resume without running it again.
     pub const STATUS: &str = "status.txt";
+    /// The messages a paced run's bounded queues dropped (`topic,stamp_ns`), written when it
+    /// had `queue_size` or given drops.
+    pub const DROPPED: &str = "dropped.csv";
 }
 
 /// Hex SHA-256 of some bytes, first 16 digits (64 bits: no collision in any sweep).

@@ -282,6 +282,10 @@ pub struct Timing {
     /// for a dataset).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub simulation_cost: BTreeMap<String, f64>,
+    /// Messages dropped per topic by the system's bounded queues (`queue_size`) or given
+    /// drops; which ones: `dropped.csv`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub dropped: BTreeMap<String, u64>,
 }
 
 /// `ape.csv`: the final estimate after alignment and its APE translation error at every pose

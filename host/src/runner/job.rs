@@ -39,6 +39,73 @@ pub struct Job {
     /// How fast to feed the plugin ([`Pace`]).
     #[serde(default)]
     pub pace: Pace,
+    /// Bounded subscriber queues ([`QueueSize`]; paced runs only): `None` is unbounded.
+    #[serde(default)]
+    pub queue_size: Option<QueueSize>,
+    /// Drop exactly these messages (a run's `dropped.csv`), instead of what the queues drop:
+    /// a run replayed with another's drops.
+    #[serde(default)]
+    pub drops: Option<PathBuf>,
+}
+
+/// The topics a queue may be bounded on: every sensor message the plugin is fed.
+pub const QUEUE_TOPICS: [&str; 6] = [
+    "imu",
+    "odom",
+    "lidar",
+    "scan2d_front",
+    "scan2d_back",
+    "rgbd",
+];
+
+/// A system's subscriber queues, as ROS 1 gives each subscription one (`queue_size` of a
+/// `[[plugins]]` entry): `queue_size = 5` bounds every topic, `queue_size = { lidar = 2,
+/// rgbd = 1 }` the ones named (the others unbounded). A message that arrives (at its stamp,
+/// on the wall clock: paced runs only) while the system is busy waits in its topic's queue;
+/// a full queue drops its oldest message, as roscpp's subscription queue does
+/// (`ros_comm/clients/roscpp/src/libros/subscription_queue.cpp`: `push` pops the front when
+/// `size_ == queue_size`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum QueueSize {
+    All(usize),
+    Topics(std::collections::BTreeMap<String, usize>),
+}
+
+impl QueueSize {
+    /// The bound on `topic`'s queue, if any.
+    pub fn of(&self, topic: &str) -> Option<usize> {
+        match self {
+            QueueSize::All(n) => Some(*n),
+            QueueSize::Topics(t) => t.get(topic).copied(),
+        }
+    }
+
+    /// Every bound at least one, every topic known, and a paced run (a free run's messages
+    /// never wait: it takes each when it is ready). The reason when not.
+    pub fn check(&self, pace: Pace) -> Result<(), String> {
+        if pace != Pace::Realtime {
+            return Err(
+                "queue_size needs pace = \"realtime\" (a free run's messages never wait)".into(),
+            );
+        }
+        let sizes: Vec<(&str, usize)> = match self {
+            QueueSize::All(n) => vec![("every topic", *n)],
+            QueueSize::Topics(t) => {
+                if let Some(bad) = t.keys().find(|k| !QUEUE_TOPICS.contains(&k.as_str())) {
+                    return Err(format!(
+                        "queue_size: unknown topic '{bad}' (known: {})",
+                        QUEUE_TOPICS.join(", ")
+                    ));
+                }
+                t.iter().map(|(k, v)| (k.as_str(), *v)).collect()
+            }
+        };
+        match sizes.iter().find(|(_, n)| *n == 0) {
+            Some((topic, _)) => Err(format!("queue_size of {topic}: must be at least 1")),
+            None => Ok(()),
+        }
+    }
 }
 
 /// How fast the worker feeds a plugin (`pace` of a `[[plugins]]` entry).

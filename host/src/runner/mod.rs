@@ -8,6 +8,7 @@ mod frames;
 pub mod interrupt;
 pub mod job;
 mod loops;
+mod queue;
 mod record;
 mod supervise;
 pub mod timing;
@@ -22,7 +23,8 @@ use anyhow::Context as _;
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 pub use evaluate::evaluate;
-pub use job::{Job, Pace, check_max_time, route_end_ns};
+pub use job::{Job, Pace, QueueSize, check_max_time, route_end_ns};
+pub use queue::read_drops;
 
 use crate::results::{RunFolder, RunOutcome, RunStatus, files};
 
@@ -34,6 +36,10 @@ pub struct PlannedRun {
     pub plugin: PathBuf,
     pub params_toml: String,
     pub pace: Pace,
+    /// Bounded subscriber queues (paced runs): `None`, unbounded.
+    pub queue_size: Option<QueueSize>,
+    /// Drop exactly the messages a `dropped.csv` names (`vinebench run --drops`).
+    pub drops: Option<PathBuf>,
     /// The folder the plugin's relative paths are relative to (the bench file's): handed
     /// to the worker as `VINEBENCH_BENCH_DIR`. `None`: the current folder.
     pub base_dir: Option<PathBuf>,
@@ -243,6 +249,8 @@ fn run_all(
             max_time_s: plan.max_time_s,
             fed: fed[i],
             pace: run.pace,
+            queue_size: run.queue_size.clone(),
+            drops: run.drops.as_ref().map(std::path::absolute).transpose()?,
         };
         crate::results::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));

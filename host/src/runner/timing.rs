@@ -67,6 +67,7 @@ impl Timing {
             realtime_factor_plugin: simulated_s / plugin_s.max(1e-9),
             latency,
             simulation_cost: BTreeMap::new(),
+            dropped: BTreeMap::new(),
         }
     }
 }

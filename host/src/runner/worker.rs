@@ -52,6 +52,18 @@ impl Pacer {
         Self { pace, start: None }
     }
 
+    /// Whether `stamp_ns` is due by now (never before the first message, never on a free
+    /// run).
+    fn is_due(&self, stamp_ns: i64) -> bool {
+        match (self.pace, self.start) {
+            (Pace::Realtime, Some((t0, first))) => {
+                t0 + std::time::Duration::from_nanos(stamp_ns.saturating_sub(first).max(0) as u64)
+                    <= Instant::now()
+            }
+            _ => false,
+        }
+    }
+
     /// Sleeps until `stamp_ns` is due: its distance from the first stamp, on the wall clock
     /// since the first message.
     fn wait_for(&mut self, stamp_ns: i64) {
@@ -109,6 +121,15 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     // Without one the stream is fed whole, as before.
     let cut = job.max_time_s.is_some();
     let source = source.take_while(move |m| !cut || m.stamp_ns() <= total_ns);
+    if let Some(q) = &job.queue_size {
+        q.check(job.pace).map_err(|why| anyhow!("{why}"))?;
+    }
+    let given = job
+        .drops
+        .as_deref()
+        .map(super::queue::read_drops)
+        .transpose()?;
+    let mut queues = super::queue::Queues::new(job.queue_size.clone(), given);
     let cost = std::thread::scope(|scope| -> anyhow::Result<SimulationCost> {
         let (tx, rx) = sync_channel(AHEAD);
         let producer = scope.spawn(move || {
@@ -122,13 +143,38 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
             cost
         });
         let mut clock = Pacer::new(job.pace);
-        for message in rx {
-            if let Message::GroundTruth(gt) = &message {
-                groundtruth.push(Pose::new(gt.stamp_ns, &gt.world_from_base));
-                continue;
+        // With bounded queues on a paced run, what has arrived by the time the system is free
+        // waits in its topic's queue (and a full one drops); otherwise each message is taken
+        // from the stream when the system is ready for it, as before.
+        let eager = job.queue_size.is_some() && job.pace == Pace::Realtime;
+        let mut rx = rx.into_iter().peekable();
+        loop {
+            while let Some(m) = rx.next_if(|m| {
+                matches!(m, Message::GroundTruth(_)) || (eager && clock.is_due(m.stamp_ns()))
+            }) {
+                match m {
+                    Message::GroundTruth(gt) => {
+                        groundtruth.push(Pose::new(gt.stamp_ns, &gt.world_from_base));
+                    }
+                    m => queues.push(m),
+                }
             }
+            let message = match queues.pop() {
+                Some(m) => m,
+                None => match rx.next() {
+                    None => break,
+                    Some(Message::GroundTruth(gt)) => {
+                        groundtruth.push(Pose::new(gt.stamp_ns, &gt.world_from_base));
+                        continue;
+                    }
+                    Some(m) => {
+                        clock.wait_for(m.stamp_ns());
+                        queues.push(m);
+                        continue;
+                    }
+                },
+            };
             let stamp = message.stamp_ns();
-            clock.wait_for(stamp);
             let call = Instant::now();
             let returned = deliver(&mut instance, &message, &mut points).map_err(|e| {
                 anyhow!(
@@ -184,6 +230,11 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     // The simulated time fed: the route up to its limit.
     let simulated = total_ns as f64 * 1e-9;
     let mut report = timing.report(simulated, wall, process_cpu_s(), process_peak_rss_mb());
+    report.dropped = queues.counts();
+    if job.queue_size.is_some() || job.drops.is_some() {
+        std::fs::write(job.out_dir.join(files::DROPPED), queues.csv())
+            .with_context(|| job.out_dir.join(files::DROPPED).display().to_string())?;
+    }
     report.source = match (&job.dataset, job.fed) {
         (Some(_), _) if job.recorded => "recording",
         (Some(_), _) => "dataset",

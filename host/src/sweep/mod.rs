@@ -55,6 +55,8 @@ pub struct Cell {
     pub params_toml: String,
     #[serde(default)]
     pub pace: crate::runner::Pace,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub queue_size: Option<crate::runner::QueueSize>,
     /// The sweep file's folder: what the plugin's relative paths are relative to.
     #[serde(default)]
     pub base_dir: Option<PathBuf>,
@@ -311,6 +313,11 @@ impl Sweep {
                             crate::runner::Pace::Free => String::new(),
                             crate::runner::Pace::Realtime => "pace realtime\n".to_owned(),
                         };
+                        // Likewise bounded queues, new with issue 45.
+                        let pace = match &plugin.queue_size {
+                            None => pace,
+                            Some(q) => format!("{pace}queue {q:?}\n"),
+                        };
                         let resolved = format!(
                             "vinebench-sweep-cell 1\nscenario {scenario:?}\nseed {seed}\n\
                              plugin {plugin_hash}\nparams {:?}\nworld {world}\n\
@@ -324,6 +331,7 @@ impl Sweep {
                             plugin: plugin.library.clone(),
                             params_toml: plugin.params_toml.clone(),
                             pace: plugin.pace,
+                            queue_size: plugin.queue_size.clone(),
                             base_dir: Some(plugin.base_dir.clone()),
                             seed,
                             point: axes
@@ -414,6 +422,8 @@ impl Sweep {
                             plugin: c.plugin.clone(),
                             params_toml: c.params_toml.clone(),
                             pace: c.pace,
+                            queue_size: c.queue_size.clone(),
+                            drops: None,
                             base_dir: c.base_dir.clone(),
                         })
                         .collect(),

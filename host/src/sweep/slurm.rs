@@ -212,6 +212,8 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
             plugin: cell.plugin.clone(),
             params_toml: cell.params_toml.clone(),
             pace: cell.pace,
+            queue_size: cell.queue_size.clone(),
+            drops: None,
             base_dir: cell.base_dir.clone(),
         }],
         jobs: 1,

@@ -470,3 +470,102 @@ fn a_finished_run_is_reported_while_its_groupmate_hangs() {
         "{rest:?}"
     );
 }
+
+/// Bounded subscriber queues (`queue_size`): a system slower than its topic (the fault
+/// plugin taking 30 ms over each 50 Hz wheel odometry message), paced, with a queue of one
+/// misses messages, each one either delivered or listed in `dropped.csv`; a free run given
+/// that file drops exactly those and gives the same trajectory, byte for byte. A queue on a
+/// free run, or of size 0, is one line naming it.
+#[test]
+fn a_bounded_queue_drops_what_a_slow_system_misses_and_its_drops_replay() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let lib = plugin_lib("fault_plugin");
+    let lib = lib.to_str().expect("utf-8");
+    let slow = write(tmp.path(), "slow.toml", "work_ms = 30\n");
+    let fast = write(tmp.path(), "fast.toml", "");
+    let run = |label: &str, params: &Path, extra: &[&str]| {
+        let out = tmp.path().join(label);
+        let mut args = vec![
+            "run",
+            "--scenario",
+            "s0",
+            "--max-time",
+            "3",
+            "--plugin",
+            lib,
+            "--label",
+            label,
+            "--plugin-config",
+            params.to_str().expect("utf-8"),
+            "--out",
+            out.to_str().expect("utf-8"),
+        ];
+        args.extend_from_slice(extra);
+        let o = vinebench(&args);
+        (o, out.join("s0").join(label))
+    };
+    let lines = |p: &Path| {
+        std::fs::read_to_string(p)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .count()
+    };
+    let (o, all) = run("all", &fast, &[]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let total = lines(&all.join("estimate.tum"));
+    assert!(!all.join("dropped.csv").exists(), "no queue, no drops file");
+
+    let (o, queued) = run(
+        "queued",
+        &slow,
+        &["--pace", "realtime", "--queue-size", "1"],
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let delivered = lines(&queued.join("estimate.tum"));
+    let dropped = lines(&queued.join("dropped.csv")) - 1;
+    let timing = json(&queued.join("timing.json"));
+    assert_eq!(
+        timing["dropped"]["odom"].as_u64(),
+        Some(dropped as u64),
+        "{timing}"
+    );
+    // 30 ms of work per 20 ms message: at least a third cannot be taken.
+    assert!(dropped * 3 >= total, "{dropped} of {total} dropped");
+    assert_eq!(
+        delivered + dropped,
+        total,
+        "every message delivered or dropped"
+    );
+
+    let drops = queued.join("dropped.csv");
+    let (o, replayed) = run(
+        "replayed",
+        &fast,
+        &["--drops", drops.to_str().expect("utf-8")],
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    for f in ["estimate.tum", "dropped.csv"] {
+        assert_eq!(
+            std::fs::read(replayed.join(f)).expect("replayed file"),
+            std::fs::read(queued.join(f)).expect("queued file"),
+            "{f}: the same drops give the same run"
+        );
+    }
+
+    for (extra, culprit) in [
+        (&["--queue-size", "1"][..], "realtime"),
+        (
+            &["--pace", "realtime", "--queue-size", "0"][..],
+            "at least 1",
+        ),
+    ] {
+        let (o, _) = run("bad", &fast, extra);
+        let err = text(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(culprit),
+            "{extra:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
+    }
+}

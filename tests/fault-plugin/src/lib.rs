@@ -1,7 +1,8 @@
 //! A plugin that fails on purpose, to prove that one broken plugin costs one run and not
 //! the benchmark. Parameters: `fault = "none" | "panic" | "abort" | "segfault" | "hang" |
 //! "alloc" | "nan"`, `after = N` (the message at which it strikes, default 20). Until then
-//! it behaves as a (poor) odometry that echoes the wheel odometry pose.
+//! it behaves as a (poor) odometry that echoes the wheel odometry pose, taking `work_ms`
+//! milliseconds over each message (default 0: a slow system, for bounded queues).
 
 // The segfault fault writes through a null pointer: that is its whole point.
 #![allow(unsafe_code)]
@@ -30,6 +31,7 @@ enum Fault {
 struct Config {
     fault: Fault,
     after: usize,
+    work_ms: u64,
 }
 
 impl Parameters for Config {}
@@ -39,6 +41,7 @@ impl Default for Config {
         Self {
             fault: Fault::None,
             after: 20,
+            work_ms: 0,
         }
     }
 }
@@ -93,6 +96,9 @@ impl SlamSystem for FaultPlugin {
 
     fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
         self.seen += 1;
+        if self.config.work_ms > 0 {
+            std::thread::sleep(std::time::Duration::from_millis(self.config.work_ms));
+        }
         if self.seen == self.config.after {
             self.strike();
         }
