@@ -280,8 +280,14 @@ fn run_all(
             let (pipeline, recordings, world_file) = (&pipeline, &recordings, &world_file);
             scope.spawn(move || {
                 let refs: Vec<&record::Recording> = recordings.iter().collect();
-                pipeline.make_all(&refs, &|rec| {
-                    record::record(rec, world_file.as_deref(), plan.seed, plan.max_time_s)
+                pipeline.make_all(&refs, &|rec, ahead| {
+                    record::record(
+                        rec,
+                        world_file.as_deref(),
+                        plan.seed,
+                        plan.max_time_s,
+                        ahead,
+                    )
                 });
             });
         }

@@ -89,13 +89,16 @@ pub fn recording_path(
 /// How often a recording's child is looked at (for Ctrl-C).
 const POLL: Duration = Duration::from_millis(100);
 
-/// Records `rec` with `vinebench record` in a child process at the lowest CPU priority
-/// (`nice -n 19` where there is `nice`); `Err` says why not. Stops the child on Ctrl-C.
+/// Records `rec` with `vinebench record` in a child process, `ahead` (while runs replay
+/// other recordings) at the lowest CPU priority (`nice -n 19` where there is `nice`), else at
+/// the normal one: with nothing replaying there is nothing to yield to; `Err` says why not.
+/// Stops the child on Ctrl-C.
 pub fn record(
     rec: &Recording,
     world: Option<&Path>,
     seed: u64,
     max_time_s: Option<f64>,
+    ahead: bool,
 ) -> Result<(), String> {
     let exe = std::env::current_exe()
         .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
@@ -126,12 +129,17 @@ pub fn record(
             .stderr(Stdio::piped())
             .spawn()
     };
-    let mut child = match spawn(
-        Command::new("nice")
-            .args(["-n", "19"])
-            .arg(&exe)
-            .args(&args),
-    ) {
+    let niced = if ahead {
+        spawn(
+            Command::new("nice")
+                .args(["-n", "19"])
+                .arg(&exe)
+                .args(&args),
+        )
+    } else {
+        Err(std::io::Error::other("not ahead"))
+    };
+    let mut child = match niced {
         Ok(child) => child,
         // No `nice` here: the recording at the normal priority.
         Err(_) => spawn(Command::new(&exe).args(&args))
@@ -212,10 +220,12 @@ impl Pipeline {
 
     /// Makes the recordings in order (the recorder thread's work), each once fewer than
     /// the limit are on disk; one already there (kept by a stopped plan) is taken as made.
+    /// `make` is told whether it records ahead: while another recording is on disk (its runs
+    /// replaying it, or about to).
     pub fn make_all(
         &self,
         recordings: &[&Recording],
-        make: &dyn Fn(&Recording) -> Result<(), String>,
+        make: &dyn Fn(&Recording, bool) -> Result<(), String>,
     ) {
         for (k, rec) in recordings.iter().enumerate() {
             let mut state = self.state.lock().expect("no panics while holding the lock");
@@ -226,6 +236,7 @@ impl Pipeline {
                     .expect("no panics while holding the lock")
                     .0;
             }
+            let ahead = state.on_disk > 0;
             state.on_disk += 1;
             drop(state);
             let outcome = if interrupt::interrupted() {
@@ -233,7 +244,7 @@ impl Pipeline {
             } else if rec.path.is_file() {
                 Ok(())
             } else {
-                make(rec)
+                make(rec, ahead)
             };
             self.state
                 .lock()
@@ -316,7 +327,7 @@ mod tests {
         let made = Mutex::new(Vec::new());
         std::thread::scope(|scope| {
             scope.spawn(|| {
-                pipeline.make_all(&refs, &|r| {
+                pipeline.make_all(&refs, &|r, _| {
                     std::fs::write(&r.path, b"x").map_err(|e| e.to_string())?;
                     made.lock().expect("lock").push(r.scenario.clone());
                     Ok(())
