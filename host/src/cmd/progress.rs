@@ -156,14 +156,21 @@ impl Progress {
                 cost.get(system.as_str()).copied().unwrap_or(mean) * route_s * (1.0 - fed)
             })
             .collect();
+        Some(self.packed(&left, &|_| true))
+    }
+
+    /// The time `left` (each run's, 0 for an ended one) takes on the `jobs` slots: per
+    /// group of the runner's schedule that is `open`, its longest run for the slots it takes
+    /// (its runs end together), else per run; max(the sum over the slots, the longest).
+    fn packed(&self, left: &[f64], open: &dyn Fn(&[usize]) -> bool) -> f64 {
         let schedule = self
             .schedule
             .lock()
             .expect("no panics while holding the lock");
         let (sum, longest) = match schedule.as_ref() {
-            // A group not yet ended: its longest run left, for the slots it takes.
             Some(groups) => groups
                 .iter()
+                .filter(|(runs, _)| open(runs))
                 .map(|(runs, slots)| {
                     let d = runs
                         .iter()
@@ -175,7 +182,7 @@ impl Progress {
                 .fold((0.0, 0.0), |(s, l), (w, d)| (s + w, f64::max(l, d))),
             None => (left.iter().sum(), left.iter().copied().fold(0.0, f64::max)),
         };
-        Some((sum / self.jobs as f64).max(longest))
+        (sum / self.jobs as f64).max(longest)
     }
 
     /// How the runs will start (from the runner, before any does).
@@ -224,36 +231,19 @@ impl Progress {
         let left: Vec<f64> = flags
             .iter()
             .zip(&self.predicted)
-            .filter(|(ended, _)| !**ended)
-            .map(|(_, p)| *p)
+            .map(|(ended, p)| if *ended { 0.0 } else { *p })
             .collect();
         if *predicted_sum <= 0.0 {
             // Nothing measured: the time so far per run, as many runs again.
-            return elapsed_s / k as f64 * left.len() as f64 / self.jobs as f64;
+            let runs_left = flags.iter().filter(|e| !**e).count();
+            return elapsed_s / k as f64 * runs_left as f64 / self.jobs as f64;
         }
         let scale = *measured_sum / *predicted_sum;
-        let schedule = self
-            .schedule
-            .lock()
-            .expect("no panics while holding the lock");
-        let (sum, longest) = match schedule.as_ref() {
-            // Per group not yet begun to end: its longest run, times the share of the
-            // slots it takes.
-            Some(groups) => groups
-                .iter()
-                .filter(|(runs, _)| runs.iter().all(|&i| flags.get(i) == Some(&false)))
-                .map(|(runs, slots)| {
-                    let d = runs
-                        .iter()
-                        .filter_map(|&i| self.predicted.get(i))
-                        .copied()
-                        .fold(0.0, f64::max);
-                    (d * *slots as f64, d)
-                })
-                .fold((0.0, 0.0), |(s, l), (w, d)| (s + w, f64::max(l, d))),
-            None => (left.iter().sum(), left.iter().copied().fold(0.0, f64::max)),
-        };
-        scale * (sum / self.jobs as f64).max(longest)
+        // Per group not yet begun to end: its longest run, for the slots it takes.
+        scale
+            * self.packed(&left, &|runs| {
+                runs.iter().all(|&i| flags.get(i) == Some(&false))
+            })
     }
 
     /// Run `index`, described by `what` (`s0/lio-sam`, a sweep's cell), has ended; an
