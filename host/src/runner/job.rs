@@ -66,7 +66,10 @@ pub const QUEUE_TOPICS: [&str; 6] = [
 /// (`ros_comm/clients/roscpp/src/libros/subscription_queue.cpp`: `push` pops the front when
 /// `size_ == queue_size`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "queue_size: a number of messages (5), or one per topic ({ lidar = 2, rgbd = 1 })"
+)]
 pub enum QueueSize {
     All(usize),
     Topics(std::collections::BTreeMap<String, usize>),
@@ -145,4 +148,48 @@ pub fn route_end_ns(duration_ns: i64, max_time_s: Option<f64>) -> anyhow::Result
     };
     check_max_time(s).map_err(|why| anyhow::anyhow!("max_time_s = {s}: {why}"))?;
     Ok(duration_ns.min(max_time_ns(s)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    struct Entry {
+        queue_size: QueueSize,
+    }
+
+    fn parse(text: &str) -> Result<QueueSize, String> {
+        toml::from_str::<Entry>(text)
+            .map(|e| e.queue_size)
+            .map_err(|e| e.message().to_owned())
+    }
+
+    /// `queue_size` is a number for every topic or a table by topic, checked for a paced run,
+    /// known topics and sizes of at least one; anything else says what it expects.
+    #[test]
+    fn a_queue_size_is_a_number_or_one_per_topic() {
+        let all = parse("queue_size = 5").expect("number");
+        assert_eq!((all.of("lidar"), all.of("imu")), (Some(5), Some(5)));
+        let some = parse("queue_size = { lidar = 2 }").expect("table");
+        assert_eq!((some.of("lidar"), some.of("imu")), (Some(2), None));
+        assert_eq!(some.check(Pace::Realtime), Ok(()));
+        let err = parse("queue_size = \"five\"").expect_err("a string");
+        assert!(err.contains("a number of messages"), "{err}");
+        let err = some.check(Pace::Free).expect_err("free");
+        assert!(err.contains("realtime"), "{err}");
+        let err = parse("queue_size = { lidr = 2 }")
+            .expect("parses")
+            .check(Pace::Realtime)
+            .expect_err("unknown topic");
+        assert!(
+            err.contains("'lidr'") && err.contains("scan2d_front"),
+            "{err}"
+        );
+        let err = parse("queue_size = { rgbd = 0 }")
+            .expect("parses")
+            .check(Pace::Realtime)
+            .expect_err("zero");
+        assert!(err.contains("rgbd") && err.contains("at least 1"), "{err}");
+    }
 }
