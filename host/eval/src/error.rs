@@ -75,7 +75,10 @@ pub enum EvalError {
         got: usize,
     },
     /// The positions are degenerate (e.g. all on one point), so alignment is not defined.
-    #[error("degenerate covariance rank, {what} alignment is not possible")]
+    #[error(
+        "degenerate covariance rank, {what} alignment is not possible (the positions lie on a \
+         point or a line: a route cut while the robot turns in place or drives straight?)"
+    )]
     Degenerate { what: &'static str },
     /// No drift segment fits in the reference path.
     #[error(
