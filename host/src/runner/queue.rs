@@ -15,8 +15,8 @@ use super::job::QueueSize;
 #[derive(Debug, Default)]
 pub struct Queues {
     size: Option<QueueSize>,
-    /// Given drops (topic, stamp): these and only these are dropped.
-    given: Option<BTreeSet<(String, i64)>>,
+    /// Given drops, stamps by topic: these and only these are dropped.
+    given: Option<BTreeMap<String, BTreeSet<i64>>>,
     /// Per topic, the messages waiting with their place in the stream.
     waiting: BTreeMap<&'static str, VecDeque<(u64, Message)>>,
     next_seq: u64,
@@ -26,6 +26,14 @@ pub struct Queues {
 
 impl Queues {
     pub fn new(size: Option<QueueSize>, given: Option<BTreeSet<(String, i64)>>) -> Self {
+        // By topic, so that a message is looked up without building its key.
+        let given = given.map(|drops| {
+            let mut by_topic: BTreeMap<String, BTreeSet<i64>> = BTreeMap::new();
+            for (topic, stamp) in drops {
+                by_topic.entry(topic).or_default().insert(stamp);
+            }
+            by_topic
+        });
         Queues {
             size,
             given,
@@ -38,7 +46,10 @@ impl Queues {
     pub fn push(&mut self, message: Message) {
         let topic = message.sensor();
         if let Some(given) = &self.given {
-            if given.contains(&(topic.to_owned(), message.stamp_ns())) {
+            if given
+                .get(topic)
+                .is_some_and(|stamps| stamps.contains(&message.stamp_ns()))
+            {
                 self.dropped.push((topic, message.stamp_ns()));
                 return;
             }
