@@ -12,6 +12,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Print the world a run would see, every key resolved (defaults, profile, file).
+    World(vinebench::cmd::world::WorldArgs),
     /// Run the simulator along a scenario and optionally dump its sensor data.
     Simulate(vinebench::cmd::simulate::SimulateArgs),
     /// Record the simulated sensor stream as an MCAP file of ROS 2 messages.
@@ -44,6 +46,7 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::World(args) => vinebench::cmd::world::run(&args),
         Command::Simulate(args) => vinebench::cmd::simulate::run(&args),
         Command::Record(args) => vinebench::cmd::record::run(&args),
         Command::Export(args) => vinebench::cmd::export::run(&args),

@@ -42,3 +42,4 @@ pub mod sim_args;
 pub mod simulate;
 pub mod sweep;
 pub mod worker;
+pub mod world;

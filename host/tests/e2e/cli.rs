@@ -249,3 +249,60 @@ fn simulate_dumps_the_camera_as_tum_rgbd() {
         "640x480 16-bit grayscale"
     );
 }
+
+/// The ladder end to end: `world --profile` resolves a world under another rung, and the
+/// simulator run on what it printed follows that rung. The IMU standing still for its first
+/// 2 s reads one value under `ideal` and a noisy one under `typical`.
+#[test]
+fn world_prints_the_resolved_world_under_a_profile_and_the_simulator_follows_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mut spread = Vec::new();
+    for profile in ["ideal", "typical"] {
+        let o = vinebench(&["world", "--profile", profile]);
+        assert!(o.status.success(), "world: {}", stderr(&o));
+        let text = stdout(&o);
+        let table: toml::Table = text.parse().expect("world prints TOML");
+        assert_eq!(table["profile"].as_str(), Some(profile), "{text}");
+        let world = tmp.path().join(format!("{profile}.toml"));
+        std::fs::write(&world, &text).expect("write");
+        let out = tmp.path().join(profile);
+        let o = vinebench(&[
+            "simulate",
+            "--world",
+            world.to_str().expect("utf-8"),
+            "--scenario",
+            "s0",
+            "--sensors",
+            "imu",
+            "--max-time",
+            "1.5",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        assert!(o.status.success(), "simulate: {}", stderr(&o));
+        // The still robot's vertical specific force, sample by sample: its spread.
+        let az: Vec<f64> = lines(&out.join("imu.csv"))[1..]
+            .iter()
+            .map(|l| l.split(',').nth(3).expect("az").parse().expect("a number"))
+            .collect();
+        let mean = az.iter().sum::<f64>() / az.len() as f64;
+        let sd = (az.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / az.len() as f64).sqrt();
+        spread.push(sd);
+    }
+    // Under ideal only the rounding of the trajectory's second derivative is left; under
+    // typical the accelerometer's white noise, 2e-3 m/s²/√Hz at 200 Hz: σ ≈ 0.02 m/s².
+    assert!(spread[0] < 1e-9, "ideal: σ {} m/s² while still", spread[0]);
+    assert!(
+        (0.01..0.04).contains(&spread[1]),
+        "typical: σ {} m/s² while still",
+        spread[1]
+    );
+
+    let o = vinebench(&["world", "--profile", "gazebo"]);
+    assert_eq!(o.status.code(), Some(2), "a usage error");
+    assert!(
+        stderr(&o).contains("unknown profile 'gazebo'"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -10,9 +10,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::SimError;
 
+mod profile;
 mod route;
 mod sensors;
 
+pub use profile::Profile;
 pub use route::RouteSpec;
 pub use sensors::*;
 
@@ -20,6 +22,9 @@ pub use sensors::*;
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SimConfig {
+    /// The sensors' models: `ideal`, `paper` or `typical` (the default), the keys of
+    /// `configs/profiles/<name>.toml` under this file's own (see [`Profile`]).
+    pub profile: Profile,
     /// Seed of the world's geometry (terrain, plants); the run's seed drives sensor noise.
     pub world_seed: u64,
     /// Ray-casting engine: `bvh` (the simulator's own), `parry` (parry3d, a cross-check) or
@@ -39,6 +44,7 @@ pub struct SimConfig {
 impl Default for SimConfig {
     fn default() -> Self {
         Self {
+            profile: Profile::Typical,
             world_seed: 1,
             raycaster: RaycasterKind::Bvh,
             vineyard: VineyardConfig::default(),
@@ -52,12 +58,41 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
-    /// Parses a TOML document; keys it leaves out keep their defaults. Scenarios given in
-    /// the document are added to (or replace) the built-in `s0`..`s4`.
+    /// Parses a TOML document over its profile's keys; keys neither leaves out keep their
+    /// defaults. Scenarios given in the document are added to (or replace) the built-in
+    /// `s0`..`s4`.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, SimError> {
-        let mut cfg: SimConfig = toml::from_str(text).map_err(|e| SimError::Config {
+        Self::from_toml_str_as(text, origin, None)
+    }
+
+    /// [`Self::from_toml_str`] under `profile` whatever the document's `profile` says
+    /// (`None`: the document's).
+    pub fn from_toml_str_as(
+        text: &str,
+        origin: &str,
+        profile: Option<Profile>,
+    ) -> Result<Self, SimError> {
+        let config_error = |message: String| SimError::Config {
             origin: origin.to_owned(),
-            message: e.message().to_owned() + &span_hint(text, e.span()),
+            message,
+        };
+        // The document alone first: a misspelt key or a value of the wrong kind is named
+        // with its line (the merged table below has no lines).
+        let alone: SimConfig = toml::from_str(text)
+            .map_err(|e| config_error(e.message().to_owned() + &span_hint(text, e.span())))?;
+        let mut file: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            config_error(e.message().to_owned() + &span_hint(text, e.span()))
+        })?;
+        let profile = profile.unwrap_or(alone.profile);
+        file.insert("profile".into(), profile.name().into());
+        let mut merged = profile.table();
+        profile::overlay(&mut merged, file);
+        let mut cfg: SimConfig = toml::Value::Table(merged).try_into().map_err(|e| {
+            config_error(format!(
+                "under profile \"{}\": {}",
+                profile.name(),
+                e.message()
+            ))
         })?;
         for (name, spec) in RouteSpec::builtin_scenarios() {
             cfg.scenarios.entry(name).or_insert(spec);
@@ -72,12 +107,25 @@ impl SimConfig {
     /// The configuration in `path`, or without one the embedded defaults
     /// (`configs/world.toml`, [`crate::DEFAULT_CONFIG_TOML`]).
     pub fn load(path: Option<&Path>) -> Result<Self, SimError> {
-        match path {
-            Some(p) => Self::from_file(p),
-            None => {
-                Self::from_toml_str(crate::DEFAULT_CONFIG_TOML, "configs/world.toml (embedded)")
-            }
-        }
+        Self::load_as(path, None)
+    }
+
+    /// [`Self::load`] under `profile` whatever the file's `profile` says (`None`: the file's).
+    pub fn load_as(path: Option<&Path>, profile: Option<Profile>) -> Result<Self, SimError> {
+        let (text, origin) = match path {
+            Some(p) => (
+                std::fs::read_to_string(p).map_err(|e| SimError::Io {
+                    path: p.to_owned(),
+                    source: e,
+                })?,
+                p.display().to_string(),
+            ),
+            None => (
+                crate::DEFAULT_CONFIG_TOML.to_owned(),
+                "configs/world.toml (embedded)".to_owned(),
+            ),
+        };
+        Self::from_toml_str_as(&text, &origin, profile)
     }
 
     /// The whole configuration as TOML, every key written out (the built-in scenarios
@@ -90,11 +138,7 @@ impl SimConfig {
     }
 
     pub fn from_file(path: &Path) -> Result<Self, SimError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SimError::Io {
-            path: path.to_owned(),
-            source: e,
-        })?;
-        Self::from_toml_str(&text, &path.display().to_string())
+        Self::load_as(Some(path), None)
     }
 
     /// Checks value ranges that serde cannot express; the message names the key.
@@ -484,20 +528,124 @@ mod tests {
         );
     }
 
-    /// Every shipped world, written out whole, reads back to the same configuration.
+    /// Every shipped world under every profile, written out whole, reads back to the same
+    /// configuration.
     #[test]
     fn a_written_world_reads_back_equal() {
         let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
         let mut worlds = vec![SimConfig::default()];
         for name in ["paper-world.toml", "world.toml"] {
-            let path = Path::new(root).join(name);
-            worlds.push(SimConfig::from_file(&path).expect("shipped world parses"));
+            let text = std::fs::read_to_string(Path::new(root).join(name)).expect("read");
+            for profile in Profile::ALL {
+                let mut table: toml::Table = text.parse().expect("parses");
+                table.insert("profile".into(), profile.name().into());
+                let text = toml::to_string(&table).expect("text");
+                worlds.push(SimConfig::from_toml_str(&text, name).expect("shipped world parses"));
+            }
         }
         for world in worlds {
             let text = world.to_toml_string();
             let back = SimConfig::from_toml_str(&text, "written").expect("reads back");
             assert_eq!(back, world, "{text}");
         }
+    }
+
+    /// `typical` restates the built-in defaults: a world without `profile` and one with
+    /// `profile = "typical"` are the same world.
+    #[test]
+    fn the_typical_profile_is_the_defaults() {
+        let alone = SimConfig::from_toml_str(Profile::Typical.toml(), "typical.toml")
+            .expect("the profile parses as a world");
+        assert_eq!(alone, SimConfig::default());
+        for profile in Profile::ALL {
+            SimConfig::from_toml_str(profile.toml(), profile.name())
+                .unwrap_or_else(|e| panic!("configs/profiles/{}.toml: {e}", profile.name()));
+        }
+    }
+
+    /// A profile's keys lie under the world file's: what the file leaves out comes from the
+    /// profile, what it states wins, and everything else keeps the defaults.
+    #[test]
+    fn a_profile_lies_under_the_world_files_keys() {
+        let text = "profile = \"paper\"\n[sensors.imu]\nrate_hz = 400.0\n\
+                    mount = { xyz_m = [0.1, 0.0, 1.0] }\n[vineyard]\nrows = 5\n";
+        let cfg = SimConfig::from_toml_str(text, "w.toml").expect("parses");
+        let imu = &cfg.sensors.imu;
+        assert_eq!(cfg.profile, Profile::Paper);
+        assert_eq!(imu.rate_hz, 400.0, "the file's key wins");
+        assert_eq!(imu.noise, NoiseProfile::None, "the profile's key");
+        assert!(imu.reports_orientation, "the profile's key");
+        assert_eq!(imu.mount.xyz_m, [0.1, 0.0, 1.0]);
+        assert_eq!(cfg.sensors.camera.depth_hfov_deg, Some(70.0));
+        assert_eq!(cfg.vineyard.rows, 5);
+        assert_eq!(cfg.sensors.wheel_odometry, WheelOdometryConfig::default());
+
+        let ideal = SimConfig::from_toml_str("profile = \"ideal\"\n", "w.toml").expect("parses");
+        let s = &ideal.sensors;
+        for (name, noise) in [
+            ("imu", s.imu.noise),
+            ("wheel_odometry", s.wheel_odometry.noise),
+            ("lidar", s.lidar.noise),
+            ("scan2d_front", s.scan2d_front.noise),
+            ("scan2d_back", s.scan2d_back.noise),
+            ("camera", s.camera.noise),
+        ] {
+            assert_eq!(
+                noise,
+                NoiseProfile::None,
+                "ideal leaves noise on the {name}"
+            );
+        }
+        let typical = SimConfig::default();
+        assert_eq!(
+            (s.lidar.instant_sweep, s.camera.width, s.imu.rate_hz),
+            (
+                typical.sensors.lidar.instant_sweep,
+                typical.sensors.camera.width,
+                typical.sensors.imu.rate_hz
+            ),
+            "ideal keeps the typical sensors' geometry and timing"
+        );
+    }
+
+    /// The shipped worlds climb the ladder: neither restates a key its profile sets, so that
+    /// `profile` alone decides the sensors' models.
+    #[test]
+    fn shipped_worlds_leave_the_models_to_their_profile() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
+        for name in ["paper-world.toml", "world.toml"] {
+            let text = std::fs::read_to_string(Path::new(root).join(name)).expect("read");
+            let mine = leaves(&toml::Value::Table(text.parse().expect("parses")), "");
+            for profile in Profile::ALL {
+                let keys = leaves(&toml::Value::Table(profile.table()), "");
+                let both: Vec<_> = keys.intersection(&mine).collect();
+                assert!(
+                    both.is_empty(),
+                    "{name} restates {both:?} of {}",
+                    profile.name()
+                );
+            }
+        }
+    }
+
+    fn leaves(value: &toml::Value, prefix: &str) -> std::collections::BTreeSet<String> {
+        match value {
+            toml::Value::Table(t) => t
+                .iter()
+                .flat_map(|(k, v)| leaves(v, &format!("{prefix}{k}.")))
+                .collect(),
+            _ => std::collections::BTreeSet::from([prefix.trim_end_matches('.').to_owned()]),
+        }
+    }
+
+    #[test]
+    fn an_unknown_profile_is_named() {
+        let e = SimConfig::from_toml_str("profile = \"gazebo\"\n", "w.toml").expect_err("name");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("w.toml") && msg.contains("gazebo") && msg.contains("line 1"),
+            "{msg}"
+        );
     }
 
     #[test]
