@@ -4,7 +4,7 @@
 use std::str::FromStr;
 
 use crate::camera::RgbdCamera;
-use crate::config::{RaycasterKind, SimConfig};
+use crate::config::{RaycasterKind, SensorsConfig, Side, SimConfig};
 use crate::error::SimError;
 use crate::raycast::{Bvh, ParryCaster, RayCaster};
 use crate::rng::stream;
@@ -66,7 +66,11 @@ impl FromStr for SensorSet {
 /// Everything a run needs, built once.
 #[derive(Debug)]
 pub struct Simulation {
+    /// The configuration: the sensors' mounts as the systems are told them.
     pub config: SimConfig,
+    /// The sensors as they really are: each mount moved by its `mount_error`, drawn for
+    /// this run's seed (equal to `config.sensors` when every error is zero).
+    placed: SensorsConfig,
     pub world: World,
     pub route: Route,
     pub trajectory: Trajectory,
@@ -128,12 +132,19 @@ impl Simulation {
         };
         Ok(Self {
             config: config.clone(),
+            placed: placed_sensors(&config.sensors, seed),
             world,
             route,
             trajectory,
             caster,
             seed,
         })
+    }
+
+    /// The sensors as they really sit in this run (their mounts moved by the drawn
+    /// `mount_error`s); `config.sensors` is what the systems are told.
+    pub fn placed_sensors(&self) -> &SensorsConfig {
+        &self.placed
     }
 
     pub fn duration_ns(&self) -> i64 {
@@ -154,7 +165,7 @@ impl Simulation {
     /// without rendering the frames before it). `None` before the first frame or after the
     /// route. Lets an evaluation show the frames a system was given without keeping them.
     pub fn rgbd_frame_at(&self, stamp_ns: i64) -> Option<RgbdFrame> {
-        let rate_hz = self.config.sensors.camera.rate_hz;
+        let rate_hz = self.placed.camera.rate_hz;
         if stamp_ns < 0 || stamp_ns > self.duration_ns() || rate_hz.is_nan() || rate_hz <= 0.0 {
             return None;
         }
@@ -171,7 +182,7 @@ impl Simulation {
         for _ in 0..k {
             let _: u64 = rand::Rng::random(&mut rng);
         }
-        let camera = RgbdCamera::new(&self.config.sensors.camera, &self.world);
+        let camera = RgbdCamera::new(&self.placed.camera, &self.world);
         let frame_ns = crate::sensors::sample_time_ns(k, rate_hz);
         Some(RgbdFrame {
             stamp_ns: frame_ns,
@@ -185,7 +196,7 @@ impl Simulation {
     /// it shares; `None` where the ray meets nothing (sky or background). Lets an
     /// evaluation say what a system's matched keypoints lay on.
     pub fn surface_at_pixel(&self, stamp_ns: i64, u: f64, v: f64) -> Option<Surface> {
-        let cfg = &self.config.sensors.camera;
+        let cfg = &self.placed.camera;
         let intrinsics = crate::camera::Intrinsics::from_config(cfg);
         let world_from_optical = self.trajectory.pose(stamp_ns)
             * cfg.mount.base_from_sensor()
@@ -211,7 +222,7 @@ impl Simulation {
     /// sensor saw there, not the bytes a system was given. Points in the lidar frame, as
     /// in the stream. `None` before the first complete sweep or after the route.
     pub fn lidar_sweep_at(&self, stamp_ns: i64) -> Option<crate::sensors::LidarScan> {
-        let mut cfg = self.config.sensors.lidar.clone();
+        let mut cfg = self.placed.lidar.clone();
         cfg.noise = crate::config::NoiseProfile::None;
         let mut lidar = LidarSensor::new(&cfg, self.duration_ns(), stream(self.seed, "lidar"));
         if stamp_ns < 0 || lidar.sweep_ns() <= 0 {
@@ -227,7 +238,7 @@ impl Simulation {
 
     /// The time-ordered message stream of the selected sensors.
     pub fn stream(&self, sensors: SensorSet) -> Stream<'_> {
-        let s = &self.config.sensors;
+        let s = &self.placed;
         let end = self.duration_ns();
         let rng = |tag: &str| stream(self.seed, tag);
         let mut list: Vec<Box<dyn Sensor>> = Vec::new();
@@ -313,4 +324,24 @@ impl Iterator for Stream<'_> {
             .min_by_key(|&(i, t)| (t, i))?;
         Some(self.sensors[index].emit(&self.scene))
     }
+}
+
+/// `sensors` with every mount moved by its error drawn under `seed`, each sensor from a
+/// stream of its own.
+fn placed_sensors(sensors: &SensorsConfig, seed: u64) -> SensorsConfig {
+    let mut placed = sensors.clone();
+    let s = sensors;
+    placed.imu.mount = s.imu.mount_error.place(s.imu.mount, seed, "imu");
+    placed.lidar.mount = s.lidar.mount_error.place(s.lidar.mount, seed, "lidar");
+    placed.camera.mount = s.camera.mount_error.place(s.camera.mount, seed, "rgbd");
+    for (side, scanner, tag) in [
+        (Side::Front, &mut placed.scan2d_front, "scan_front"),
+        (Side::Back, &mut placed.scan2d_back, "scan_back"),
+    ] {
+        if !scanner.mount_error.is_zero() {
+            let nominal = scanner.mount_for(side);
+            scanner.mount = Some(scanner.mount_error.place(nominal, seed, tag));
+        }
+    }
+    placed
 }

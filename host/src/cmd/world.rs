@@ -14,7 +14,7 @@ pub struct WorldArgs {
     /// Simulator configuration (configs/world.toml shape); defaults are built in.
     #[arg(long)]
     pub world: Option<PathBuf>,
-    /// The sensors' models, whatever the file's `profile` says: ideal, paper or typical
+    /// The sensors' models, whatever the file's `profile` says: ideal, paper, typical or field
     /// (configs/profiles/).
     #[arg(long, value_parser = parse_profile)]
     pub profile: Option<Profile>,

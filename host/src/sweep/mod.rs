@@ -608,6 +608,40 @@ mod tests {
         assert_eq!(value_text(&toml::Value::Array(Vec::new())), "[]");
     }
 
+    /// Every shipped bench and sweep file expands: each world it names or makes with its
+    /// axes resolves (the profile ladder moved the worlds' sensor keys; a file whose axes
+    /// no longer fit says so here, not hours into a study).
+    #[test]
+    fn every_shipped_bench_and_sweep_file_expands() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+        let mut files = Vec::new();
+        let mut dirs = vec![root.clone()];
+        while let Some(dir) = dirs.pop() {
+            for entry in std::fs::read_dir(&dir).expect("configs") {
+                let path = entry.expect("entry").path();
+                if path.is_dir() {
+                    dirs.push(path);
+                } else if path.extension().is_some_and(|e| e == "toml")
+                    && std::fs::read_to_string(&path)
+                        .expect("read")
+                        .contains("[[plugins]]")
+                {
+                    files.push(path);
+                }
+            }
+        }
+        assert!(files.len() > 30, "{} bench and sweep files", files.len());
+        for file in files {
+            let name = file.display().to_string();
+            let cfg = BenchConfig::from_file(&file).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+            let base = match &cfg.world {
+                Some(p) => std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{name}: {e}")),
+                None => sim::DEFAULT_CONFIG_TOML.to_owned(),
+            };
+            expand(&cfg, &name, &base).unwrap_or_else(|e| panic!("{e:#}"));
+        }
+    }
+
     /// fuzz/regressions/sweep_toml/a-million-worlds.toml: six axes of ten values, a
     /// million worlds, each resolved and checked before the sweep started (a fuzzer's
     /// timeout); a sweep past the limits is now refused before it expands.

@@ -182,6 +182,15 @@ impl SimConfig {
         positive("sensors.imu.rate_hz", s.imu.rate_hz)?;
         positive("sensors.wheel_odometry.rate_hz", s.wheel_odometry.rate_hz)?;
         positive("sensors.lidar.rate_hz", s.lidar.rate_hz)?;
+        for (k, a) in s.lidar.beam_divergence_mrad.iter().enumerate() {
+            in_range(
+                &format!("sensors.lidar.beam_divergence_mrad[{k}]"),
+                *a,
+                0.0,
+                100.0,
+            )?;
+        }
+        non_negative("sensors.lidar.echo_separation_m", s.lidar.echo_separation_m)?;
         if s.lidar.columns == 0 || s.lidar.rings == 0 {
             return Err("sensors.lidar: columns and rings must be positive".into());
         }
@@ -193,6 +202,19 @@ impl SimConfig {
                     l.samples
                 ));
             }
+        }
+        for (name, e) in [
+            ("imu", s.imu.mount_error),
+            ("lidar", s.lidar.mount_error),
+            ("scan2d_front", s.scan2d_front.mount_error),
+            ("scan2d_back", s.scan2d_back.mount_error),
+            ("camera", s.camera.mount_error),
+        ] {
+            non_negative(&format!("sensors.{name}.mount_error.sigma_m"), e.sigma_m)?;
+            non_negative(
+                &format!("sensors.{name}.mount_error.sigma_deg"),
+                e.sigma_deg,
+            )?;
         }
         let c = &s.camera;
         positive("sensors.camera.rate_hz", c.rate_hz)?;

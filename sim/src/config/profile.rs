@@ -11,7 +11,7 @@
 //! Tables merge key by key; a value or an array replaces. So a world file keeps what belongs
 //! to the place and the robot (the block, the ground, the fence, the routes, where each
 //! sensor sits, the sun) and a profile what belongs to the sensors' models (rates,
-//! resolution, fields of view, noise), and `"profile" = ["ideal", "paper", "typical"]` in a
+//! resolution, fields of view, noise), and `"profile" = ["ideal", "paper", "typical", "field"]` in a
 //! sweep's `[axes]` crosses the ladder on any world. A key the world file states itself wins
 //! over its profile: a world that should climb the ladder leaves the sensor models out.
 
@@ -34,16 +34,25 @@ pub enum Profile {
     /// biases, wheel scale and slip, per-column lidar timing, Kinect v2 depth noise.
     #[default]
     Typical,
+    /// `typical` and what makes the field harder, one key per factor (being built: so far
+    /// the lidar-IMU calibration's error; `configs/profiles/field.toml` lists the rest).
+    Field,
 }
 
 impl Profile {
-    pub const ALL: [Profile; 3] = [Profile::Ideal, Profile::Paper, Profile::Typical];
+    pub const ALL: [Profile; 4] = [
+        Profile::Ideal,
+        Profile::Paper,
+        Profile::Typical,
+        Profile::Field,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Profile::Ideal => "ideal",
             Profile::Paper => "paper",
             Profile::Typical => "typical",
+            Profile::Field => "field",
         }
     }
 
@@ -53,6 +62,7 @@ impl Profile {
             Profile::Ideal => include_str!("../../../configs/profiles/ideal.toml"),
             Profile::Paper => include_str!("../../../configs/profiles/paper.toml"),
             Profile::Typical => include_str!("../../../configs/profiles/typical.toml"),
+            Profile::Field => include_str!("../../../configs/profiles/field.toml"),
         }
     }
 

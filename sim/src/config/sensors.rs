@@ -43,6 +43,7 @@ impl Default for GroundTruthConfig {
 pub struct ImuConfig {
     pub rate_hz: f64,
     pub mount: Mount,
+    pub mount_error: MountError,
     pub noise: NoiseProfile,
     /// Accelerometer white noise density, m/s²/√Hz.
     pub accel_noise_density: f64,
@@ -69,6 +70,7 @@ impl Default for ImuConfig {
         Self {
             rate_hz: 200.0,
             mount: Mount::at(0.0, 0.0, 0.6),
+            mount_error: MountError::default(),
             noise: NoiseProfile::Typical,
             accel_noise_density: 2.0e-3,
             accel_bias_random_walk: 3.0e-4,
@@ -119,6 +121,7 @@ impl Default for WheelOdometryConfig {
 pub struct LidarConfig {
     pub rate_hz: f64,
     pub mount: Mount,
+    pub mount_error: MountError,
     pub rings: usize,
     pub min_elevation_deg: f64,
     pub max_elevation_deg: f64,
@@ -134,6 +137,17 @@ pub struct LidarConfig {
     /// time is 0, as Gazebo's `gpu_ray` sensor renders it (`sensor_velodyne_vlp16.xacro`
     /// in LCAS/bacchus_lcas, branch `liosam`): nothing to deskew, and nothing deskews.
     pub instant_sweep: bool,
+    /// Full divergence angles of each beam, horizontal (along the scan) and vertical, mrad:
+    /// the beam's footprint, sampled by sub-rays where it may straddle an edge, with mixed
+    /// pixels where two surfaces in it are too close in range to part
+    /// ([`crate::sensors::lidar_footprint`]). `[0, 0]` (the default): thin rays.
+    pub beam_divergence_mrad: [f64; 2],
+    /// With a divergence: surfaces in one footprint closer in range than this give one
+    /// echo at a range between them, m.
+    pub echo_separation_m: f64,
+    /// With a divergence: the echo reported when a footprint gives several, `strongest`
+    /// (the most energy) or `last` (the farthest).
+    pub return_mode: crate::sensors::lidar_footprint::ReturnMode,
 }
 
 impl Default for LidarConfig {
@@ -141,6 +155,7 @@ impl Default for LidarConfig {
         Self {
             rate_hz: 10.0,
             mount: Mount::at(0.0, 0.0, 1.56),
+            mount_error: MountError::default(),
             rings: 16,
             min_elevation_deg: -15.0,
             max_elevation_deg: 15.0,
@@ -150,6 +165,9 @@ impl Default for LidarConfig {
             noise: NoiseProfile::Typical,
             range_sigma_m: 0.008,
             instant_sweep: false,
+            beam_divergence_mrad: [0.0, 0.0],
+            echo_separation_m: 1.0,
+            return_mode: crate::sensors::lidar_footprint::ReturnMode::Strongest,
         }
     }
 }
@@ -162,6 +180,7 @@ pub struct Scan2dConfig {
     /// `None`: the default placement of its side (front: (0.65, 0, 0.35) m looking
     /// forward; back: (-0.65, 0, 0.35) m looking backwards).
     pub mount: Option<Mount>,
+    pub mount_error: MountError,
     pub samples: usize,
     pub angle_min_rad: f64,
     pub angle_max_rad: f64,
@@ -176,6 +195,7 @@ impl Default for Scan2dConfig {
         Self {
             rate_hz: 40.0,
             mount: None,
+            mount_error: MountError::default(),
             samples: 720,
             angle_min_rad: -2.18,
             angle_max_rad: 2.36,
@@ -198,6 +218,7 @@ pub struct CameraConfig {
     /// sensor). The image's optical frame (z forward, x right, y down) is rotated from it;
     /// see [`crate::camera::RgbdCamera::base_from_camera_optical`].
     pub mount: Mount,
+    pub mount_error: MountError,
     pub width: usize,
     pub height: usize,
     /// Horizontal field of view of the pinhole; square pixels, principal point at the centre.
@@ -298,6 +319,7 @@ impl Default for CameraConfig {
         Self {
             rate_hz: 30.0,
             mount: Mount::at(0.5, 0.0, 0.66),
+            mount_error: MountError::default(),
             width: 640,
             height: 480,
             hfov_deg: 70.0,
@@ -337,5 +359,54 @@ impl Scan2dConfig {
                 rpy_deg: [0.0, 0.0, 180.0],
             },
         })
+    }
+}
+
+/// How far a sensor really sits from its `mount`: the error its extrinsic calibration left.
+/// The sensor measures from where it really is; every system is told `mount` (the rig, the
+/// recording's transforms), as a robot's software only knows its calibration. The error is
+/// drawn once per run from the run's seed (its own stream per sensor, so switching it on
+/// changes no other draw): a translation along and a rotation about each axis of the
+/// sensor's frame, each zero-mean normal. Zero (the default): the sensor sits at `mount`.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct MountError {
+    /// σ of the offset along each axis, m.
+    pub sigma_m: f64,
+    /// σ of the rotation about each axis, degrees.
+    pub sigma_deg: f64,
+}
+
+impl MountError {
+    pub fn is_zero(&self) -> bool {
+        self.sigma_m == 0.0 && self.sigma_deg == 0.0
+    }
+
+    /// `nominal_from_true` for the sensor `tag` in the run of `seed`: where the sensor
+    /// really sits, in the frame it is believed to have.
+    pub fn draw(&self, seed: u64, tag: &str) -> nalgebra::Isometry3<f64> {
+        use rand_distr::{Distribution as _, Normal};
+        let mut rng = crate::rng::stream(seed, &format!("mount_error/{tag}"));
+        let unit = Normal::new(0.0, 1.0).expect("unit normal");
+        let mut draw3 = |sigma: f64| {
+            let v: [f64; 3] = std::array::from_fn(|_| sigma * unit.sample(&mut rng));
+            nalgebra::Vector3::from(v)
+        };
+        let t = draw3(self.sigma_m);
+        let r = draw3(self.sigma_deg.to_radians());
+        nalgebra::Isometry3::new(t, r)
+    }
+
+    /// `mount` moved by the error drawn for `tag` under `seed` (unchanged when zero).
+    pub fn place(&self, mount: Mount, seed: u64, tag: &str) -> Mount {
+        if self.is_zero() {
+            return mount;
+        }
+        let placed = mount.base_from_sensor() * self.draw(seed, tag);
+        let (r, p, y) = placed.rotation.euler_angles();
+        Mount {
+            xyz_m: placed.translation.vector.into(),
+            rpy_deg: [r, p, y].map(f64::to_degrees),
+        }
     }
 }

@@ -12,6 +12,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 
+use super::lidar_footprint::{Footprint, Return, straddles};
 use super::{LidarPoint, LidarScan, Message, Scene, Sensor};
 use crate::config::{LidarConfig, NoiseProfile};
 use crate::raycast::Hit;
@@ -151,6 +152,63 @@ impl LidarSensor {
     }
 }
 
+impl LidarSensor {
+    /// What each beam of the sweep returns: its central ray's hit, or with a beam divergence
+    /// (`beam_divergence_mrad`), for a beam next to a range discontinuity, what its
+    /// footprint gives ([`super::lidar_footprint`]).
+    fn returns(
+        &self,
+        scene: &Scene<'_>,
+        poses: &[Isometry3<f64>],
+        hits: &[Option<(Hit, f32)>],
+    ) -> Vec<Option<Return>> {
+        let mesh = &scene.world.mesh;
+        let mut returns: Vec<Option<Return>> = hits
+            .iter()
+            .map(|hit| {
+                hit.map(|(h, cos_incidence)| Return {
+                    range_m: h.t,
+                    intensity: 255.0
+                        * mesh.materials[h.triangle as usize].nir_reflectivity()
+                        * cos_incidence,
+                })
+            })
+            .collect();
+        let [dh, dv] = self.cfg.beam_divergence_mrad;
+        if dh <= 0.0 && dv <= 0.0 {
+            return returns;
+        }
+        let footprint = Footprint {
+            divergence_rad: [dh, dv].map(|a| (a * 1e-3) as f32),
+            echo_separation_m: self.cfg.echo_separation_m as f32,
+            mode: self.cfg.return_mode,
+        };
+        let (rings, columns) = (self.cfg.rings, self.cfg.columns);
+        let (t_min, t_max) = (self.cfg.min_range_m as f32, self.cfg.max_range_m as f32);
+        let range = |i: usize| hits[i].map(|(h, _)| h.t);
+        returns
+            .par_chunks_mut(rings)
+            .enumerate()
+            .for_each(|(c, column)| {
+                let (left, right) = ((c + columns - 1) % columns, (c + 1) % columns);
+                let world_from_lidar = &poses[c];
+                let origin: Point3<f32> = Point3::from(world_from_lidar.translation.vector.cast());
+                for (r, slot) in column.iter_mut().enumerate() {
+                    let i = c * rings + r;
+                    if !(straddles(range(i), range(left * rings + r))
+                        || straddles(range(i), range(right * rings + r)))
+                    {
+                        continue;
+                    }
+                    let dir = (world_from_lidar.rotation * self.directions[i].cast::<f64>())
+                        .cast::<f32>();
+                    *slot = footprint.beam_return(scene.caster, mesh, &origin, &dir, t_min, t_max);
+                }
+            });
+        returns
+    }
+}
+
 impl Sensor for LidarSensor {
     fn next_ready_ns(&self) -> Option<i64> {
         let end = self.stamp(self.k) + self.sweep_ns;
@@ -162,32 +220,31 @@ impl Sensor for LidarSensor {
         self.k += 1;
         let poses = self.column_poses(scene, stamp_ns);
         let hits = self.cast_sweep(scene, &poses);
+        let returns = self.returns(scene, &poses, &hits);
         let rings = self.cfg.rings;
         let noise = Normal::new(0.0, self.cfg.range_sigma_m).expect("range sigma is finite");
         let noisy = self.cfg.noise == NoiseProfile::Typical;
-        let mesh = &scene.world.mesh;
-        let mut points = Vec::with_capacity(hits.len());
-        for (i, hit) in hits.iter().enumerate() {
-            let Some((hit, cos_incidence)) = hit else {
+        let mut points = Vec::with_capacity(returns.len());
+        for (i, ret) in returns.iter().enumerate() {
+            let Some(ret) = ret else {
                 continue;
             };
             let (c, ring) = (i / rings, i % rings);
             let dir = self.directions[i];
             let range = if noisy {
-                hit.t + noise.sample(&mut self.rng) as f32
+                ret.range_m + noise.sample(&mut self.rng) as f32
             } else {
-                hit.t
+                ret.range_m
             };
             if !(self.cfg.min_range_m as f32..=self.cfg.max_range_m as f32).contains(&range) {
                 continue;
             }
-            let tri = hit.triangle as usize;
             let p = dir * range;
             points.push(LidarPoint {
                 x: p.x,
                 y: p.y,
                 z: p.z,
-                intensity: 255.0 * mesh.materials[tri].nir_reflectivity() * cos_incidence,
+                intensity: ret.intensity,
                 time_s: self.column_offset_ns(c) as f32 * 1e-9,
                 ring: ring as u16,
             });

@@ -4,6 +4,7 @@
 mod ground_truth;
 mod imu;
 mod lidar;
+pub mod lidar_footprint;
 mod messages;
 mod rgbd;
 mod scan2d;

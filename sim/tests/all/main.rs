@@ -4,6 +4,8 @@ mod camera;
 mod camera_features;
 mod embree;
 mod kernels;
+mod lidar_footprint;
+mod mount_error;
 mod paper_world;
 mod sim;
 
