@@ -202,7 +202,16 @@ impl LidarSensor {
                     }
                     let dir = (world_from_lidar.rotation * self.directions[i].cast::<f64>())
                         .cast::<f32>();
-                    *slot = footprint.beam_return(scene.caster, mesh, &origin, &dir, t_min, t_max);
+                    let centre = hits[i].map(|(h, _)| h);
+                    *slot = footprint.beam_return(
+                        scene.caster,
+                        mesh,
+                        &origin,
+                        &dir,
+                        centre,
+                        t_min,
+                        t_max,
+                    );
                 }
             });
         returns

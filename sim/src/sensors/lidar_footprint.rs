@@ -23,7 +23,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use crate::raycast::RayCaster;
+use crate::raycast::{Hit, RayCaster};
 use crate::world::Mesh;
 
 /// Which echo a single-return lidar reports when the footprint gives more than one.
@@ -57,16 +57,21 @@ pub struct Return {
 /// Sub-ray offsets in half widths of the footprint: the centres of its thirds.
 const OFFSETS: [f32; 3] = [-2.0 / 3.0, 0.0, 2.0 / 3.0];
 const SUB_RAYS: usize = OFFSETS.len() * OFFSETS.len();
+/// The central sub-ray, the beam's own ray.
+const CENTRE: usize = SUB_RAYS / 2;
 
 impl Footprint {
     /// What a beam from `origin` along the unit vector `dir` (world frame) returns, its
-    /// footprint sampled by sub-rays; `None` when no sub-ray meets a surface in range.
+    /// footprint sampled by sub-rays; `centre` is its central ray's hit (cast already, with
+    /// the sweep). `None` when no sub-ray meets a surface in range.
+    #[allow(clippy::too_many_arguments)]
     pub fn beam_return(
         &self,
         caster: &dyn RayCaster,
         mesh: &Mesh,
         origin: &Point3<f32>,
         dir: &Vector3<f32>,
+        centre: Option<Hit>,
         t_min: f32,
         t_max: f32,
     ) -> Option<Return> {
@@ -80,19 +85,28 @@ impl Footprint {
         };
         let v = dir.cross(&h);
         let [half_h, half_v] = self.divergence_rad.map(|a| 0.5 * a);
-        // (range, energy, ρ cos θ) of every sub-ray that meets a surface.
-        let mut hits: Vec<(f32, f32, f32)> = Vec::with_capacity(SUB_RAYS);
-        for oh in OFFSETS {
-            for ov in OFFSETS {
-                let d = (dir + h * (oh * half_h) + v * (ov * half_v)).normalize();
-                if let Some(hit) = caster.cast(origin, &d, t_min, t_max) {
-                    let tri = hit.triangle as usize;
-                    let cos = mesh.normal(tri).dot(&d).abs();
-                    let rho_cos = mesh.materials[tri].nir_reflectivity() * cos;
-                    hits.push((hit.t, rho_cos / (hit.t * hit.t), rho_cos));
-                }
+        let mut dirs = [*dir; SUB_RAYS];
+        for (k, d) in dirs.iter_mut().enumerate() {
+            let (oh, ov) = (OFFSETS[k / OFFSETS.len()], OFFSETS[k % OFFSETS.len()]);
+            if (oh, ov) != (0.0, 0.0) {
+                *d = (dir + h * (oh * half_h) + v * (ov * half_v)).normalize();
             }
         }
+        let mut sub_hits = [None; SUB_RAYS];
+        caster.cast_fan(origin, &dirs, t_min, t_max, &mut sub_hits);
+        sub_hits[CENTRE] = centre;
+        // (range, energy, ρ cos θ) of every sub-ray that meets a surface.
+        let hits: Vec<(f32, f32, f32)> = sub_hits
+            .iter()
+            .zip(&dirs)
+            .filter_map(|(hit, d)| {
+                let hit = (*hit)?;
+                let tri = hit.triangle as usize;
+                let rho_cos =
+                    mesh.materials[tri].nir_reflectivity() * mesh.normal(tri).dot(d).abs();
+                Some((hit.t, rho_cos / (hit.t * hit.t), rho_cos))
+            })
+            .collect();
         self.strongest_or_last(hits)
     }
 

@@ -3,7 +3,7 @@
 //! straddles the edge, and where the two surfaces lie far apart, the echo its mode picks.
 
 use nalgebra::{Point3, Vector3};
-use sim::raycast::Bvh;
+use sim::raycast::{Bvh, RayCaster as _};
 use sim::sensors::lidar_footprint::{Footprint, ReturnMode};
 use sim::world::{Material, Mesh};
 
@@ -35,7 +35,9 @@ fn sweep(wall_m: f32, mode: ReturnMode) -> Vec<(f32, Option<f32>)> {
         .map(|k| {
             let a = (-6.0 + 0.01 * (k as f32 + 0.5)) * 1e-3;
             let dir = Vector3::new(a.cos(), a.sin(), 0.0);
-            let r = footprint.beam_return(&caster, &mesh, &Point3::origin(), &dir, 0.1, 100.0);
+            let (o, t) = (Point3::origin(), (0.1, 100.0));
+            let centre = caster.cast(&o, &dir, t.0, t.1);
+            let r = footprint.beam_return(&caster, &mesh, &o, &dir, centre, t.0, t.1);
             (a, r.map(|r| r.range_m))
         })
         .collect()
