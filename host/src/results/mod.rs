@@ -57,6 +57,10 @@ pub mod files {
     /// (`sim::SimConfig::to_toml_string`): `run.toml`'s `world` names its source file, which
     /// may change or stay on another machine.
     pub const WORLD: &str = "world.toml";
+    /// Where the sensors really sat in the run: every mount moved by its drawn
+    /// `mount_error` (`sim::Simulation::placed_sensors`), beside `world.toml`'s nominal
+    /// mounts the system was told; written when a sensor has a `mount_error`.
+    pub const PLACED: &str = "placed.toml";
     /// The camera frames of the run's false loops, wrong joins and some true loops, rendered
     /// again at evaluation (`runner::frames`), and their list.
     pub const FRAMES_DIR: &str = "frames";

@@ -94,6 +94,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let sim = Simulation::new(&config, &job.scenario, job.seed)?;
     let rig = crate::rig::rig(&config);
     write_run_toml(job, &config, &plugin, &requirements)?;
+    write_placed(job, &config, &sim)?;
     let mut instance = plugin
         .create(&job.params_toml, &rig)
         .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
@@ -410,4 +411,39 @@ fn write_run_toml(
     // this is what it was.
     let path = job.out_dir.join(files::WORLD);
     std::fs::write(&path, config.to_toml_string()).with_context(|| path.display().to_string())
+}
+
+/// `placed.toml`: where each sensor with a `mount_error` really sat in this run.
+fn write_placed(job: &Job, config: &sim::SimConfig, sim: &Simulation) -> anyhow::Result<()> {
+    use sim::config::Side;
+    let (told, placed) = (&config.sensors, sim.placed_sensors());
+    let mounts = [
+        ("imu", told.imu.mount, placed.imu.mount),
+        ("lidar", told.lidar.mount, placed.lidar.mount),
+        ("camera", told.camera.mount, placed.camera.mount),
+        (
+            "scan2d_front",
+            told.scan2d_front.mount_for(Side::Front),
+            placed.scan2d_front.mount_for(Side::Front),
+        ),
+        (
+            "scan2d_back",
+            told.scan2d_back.mount_for(Side::Back),
+            placed.scan2d_back.mount_for(Side::Back),
+        ),
+    ];
+    let mut doc = toml::Table::new();
+    for (name, nominal, real) in mounts {
+        if nominal != real {
+            let mut t = toml::Table::new();
+            t.insert("mount".into(), toml::Value::try_from(real)?);
+            t.insert("nominal".into(), toml::Value::try_from(nominal)?);
+            doc.insert(name.into(), toml::Value::Table(t));
+        }
+    }
+    if doc.is_empty() {
+        return Ok(());
+    }
+    let path = job.out_dir.join(files::PLACED);
+    std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())
 }

@@ -288,6 +288,83 @@ fn max_time_cuts_the_route() {
     }
 }
 
+/// A run under `field` keeps where its IMU really sat (`placed.toml`: its mount moved by
+/// the drawn calibration error) beside the nominal mount the system was told (`world.toml`);
+/// a run under `typical` has no such file. The same seed draws the same error.
+#[test]
+fn a_field_run_keeps_where_its_sensors_really_sat() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let placed = |profile: &str, seed: &str| {
+        let world = tmp.path().join(format!("{profile}.toml"));
+        std::fs::write(&world, format!("profile = \"{profile}\"\n")).expect("world");
+        let out = tmp.path().join(format!("{profile}-{seed}"));
+        let o = vinebench(&[
+            "run",
+            "--scenario",
+            "s0",
+            "--plugin",
+            "wheel-odometry",
+            "--world",
+            world.to_str().expect("utf-8"),
+            "--seed",
+            seed,
+            "--max-time",
+            "3",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        assert!(o.status.success(), "run failed: {}", text(&o.stderr));
+        let run = out.join("s0/wheel-odometry");
+        let told: toml::Table = std::fs::read_to_string(run.join("world.toml"))
+            .expect("world.toml")
+            .parse()
+            .expect("TOML");
+        let told_imu = told["sensors"]["imu"]["mount"].clone();
+        std::fs::read_to_string(run.join("placed.toml"))
+            .ok()
+            .map(|t| {
+                (
+                    t.parse::<toml::Table>().expect("placed.toml is TOML"),
+                    told_imu,
+                )
+            })
+    };
+    assert!(placed("typical", "0").is_none(), "no error, no placed.toml");
+    let (doc, told_imu) = placed("field", "0").expect("placed.toml under field");
+    assert_eq!(
+        doc.keys().collect::<Vec<_>>(),
+        ["imu"],
+        "only the IMU has an error: {doc}"
+    );
+    let imu = &doc["imu"];
+    assert_eq!(
+        imu["nominal"], told_imu,
+        "the nominal mount is the one the system was told"
+    );
+    let xyz = |m: &toml::Value| -> Vec<f64> {
+        m["xyz_m"]
+            .as_array()
+            .expect("xyz_m")
+            .iter()
+            .map(|v| v.as_float().expect("a number"))
+            .collect()
+    };
+    let offset: f64 = xyz(&imu["mount"])
+        .iter()
+        .zip(xyz(&imu["nominal"]))
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    // σ 2 cm on each of three axes: the offset's length is under 15 cm but for a 1-in-10⁸
+    // draw, and above 1 mm but for a 1-in-10⁶ one.
+    assert!(
+        (0.001..0.15).contains(&offset),
+        "the IMU sat {offset} m off"
+    );
+    let (again, _) = placed("field", "0").expect("placed.toml");
+    assert_eq!(again, doc, "the same seed, the same error");
+}
+
 /// Our world's matrix file (`configs/vinebench.toml`: the paper's systems on our vineyard)
 /// runs as shipped (plugins found by name on the search path) on the first 6 s of S0–S3
 /// (`--max-time 6`): every system on every scenario of the default world, identical
