@@ -10,7 +10,7 @@ pub mod job;
 mod loops;
 mod queue;
 mod record;
-mod supervise;
+pub(crate) mod supervise;
 pub mod timing;
 pub mod worker;
 

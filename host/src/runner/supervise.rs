@@ -26,6 +26,16 @@ pub fn supervise(
     watch(child, run_dir, timeout, memory_limit_mb, progress)
 }
 
+/// How a run's failure reason begins when its worker could not be started (the executable
+/// gone or replaced by a rebuild, no processes left): the host's failure, not the plugin's.
+pub const CANNOT_START: &str = "cannot start the worker process";
+
+/// Whether a run's failure reason is that its worker could not be started: a sweep does not
+/// file such a run, so that resuming it runs it (as an interrupted one).
+pub fn is_start_failure(reason: &str) -> bool {
+    reason.starts_with(CANNOT_START)
+}
+
 /// Starts the worker on the job file in `run_dir` (absolute), in that folder. With `fed`,
 /// its stdin is a pipe, returned for the caller to stream the simulation into
 /// ([`super::feed`]); otherwise it reads nothing. `base_dir` (absolute), the folder the
@@ -35,8 +45,7 @@ pub fn spawn(
     fed: bool,
     base_dir: Option<&Path>,
 ) -> Result<(Child, Option<ChildStdin>), String> {
-    let exe = std::env::current_exe()
-        .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
+    let exe = std::env::current_exe().map_err(|e| format!("{CANNOT_START}: {e}"))?;
     let log_path = run_dir.join(files::LOG);
     let log =
         std::fs::File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
@@ -58,7 +67,7 @@ pub fn spawn(
         .stdout(Stdio::piped())
         .stderr(log)
         .spawn()
-        .map_err(|e| format!("cannot start the worker process: {e}"))?;
+        .map_err(|e| format!("{CANNOT_START}: {e}"))?;
     let stdin = child.stdin.take();
     Ok((child, stdin))
 }
@@ -136,5 +145,25 @@ fn reason(status: std::process::ExitStatus, log: &str, memory_limit_mb: u64) -> 
         None => error_line(log).map(str::to_owned).unwrap_or_else(|| {
             format!("worker exited with status {}", status.code().unwrap_or(-1))
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sweep files every failed run but these two kinds; the reason a failed start gives
+    /// is the one it recognises, and a plugin's own failure is not mistaken for it.
+    #[test]
+    fn a_failed_start_is_told_from_a_plugins_failure() {
+        let missing = std::io::Error::from(std::io::ErrorKind::NotFound);
+        assert!(is_start_failure(&format!("{CANNOT_START}: {missing}")));
+        for plugin_failure in [
+            "timed out after 600 s",
+            "plugin lio-sam failed to start: bad parameter",
+            "the worker exited with signal 11 (SIGSEGV)",
+        ] {
+            assert!(!is_start_failure(plugin_failure), "{plugin_failure}");
+        }
     }
 }

@@ -533,9 +533,11 @@ pub fn run_local(
         let work = work_dir(out, &n.to_string());
         let filed = |i: usize, outcome: &RunOutcome| {
             if let RunStatus::Failed(why) = &outcome.status
-                && crate::runner::interrupt::is_interruption(why)
+                && (crate::runner::interrupt::is_interruption(why)
+                    || crate::runner::supervise::is_start_failure(why))
             {
-                // Not filed: an interrupted run runs again when the sweep resumes.
+                // Not filed: an interrupted run, or one whose worker could not start (the
+                // host's doing, not the plugin's), runs again when the sweep resumes.
                 return;
             }
             let cell = &group[i];
