@@ -95,23 +95,24 @@ impl Footprint {
         let mut sub_hits = [None; SUB_RAYS];
         caster.cast_fan(origin, &dirs, t_min, t_max, &mut sub_hits);
         sub_hits[CENTRE] = centre;
-        // (range, energy, ρ cos θ) of every sub-ray that meets a surface.
-        let hits: Vec<(f32, f32, f32)> = sub_hits
-            .iter()
-            .zip(&dirs)
-            .filter_map(|(hit, d)| {
-                let hit = (*hit)?;
+        // (range, energy, ρ cos θ) of every sub-ray that meets a surface, on the stack: this
+        // runs for every beam beside an edge.
+        let mut hits = [(0.0f32, 0.0f32, 0.0f32); SUB_RAYS];
+        let mut n = 0;
+        for (hit, d) in sub_hits.iter().zip(&dirs) {
+            if let Some(hit) = hit {
                 let tri = hit.triangle as usize;
                 let rho_cos =
                     mesh.materials[tri].nir_reflectivity() * mesh.normal(tri).dot(d).abs();
-                Some((hit.t, rho_cos / (hit.t * hit.t), rho_cos))
-            })
-            .collect();
-        self.strongest_or_last(hits)
+                hits[n] = (hit.t, rho_cos / (hit.t * hit.t), rho_cos);
+                n += 1;
+            }
+        }
+        self.strongest_or_last(&mut hits[..n])
     }
 
     /// Groups sub-ray hits `(range, energy, ρ cos θ)` into echoes and picks one.
-    fn strongest_or_last(&self, mut hits: Vec<(f32, f32, f32)>) -> Option<Return> {
+    fn strongest_or_last(&self, hits: &mut [(f32, f32, f32)]) -> Option<Return> {
         hits.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut best: Option<(f32, Return)> = None;
         let mut start = 0;
@@ -174,7 +175,7 @@ mod tests {
         let mut hits = vec![(3.0, 1.0 / 9.0, 1.0); 4];
         hits.extend(vec![(3.4, 1.0 / 11.56, 1.0); 5]);
         let r = footprint(ReturnMode::Strongest)
-            .strongest_or_last(hits)
+            .strongest_or_last(&mut hits)
             .expect("a return");
         let expected = (4.0 * 3.0 / 9.0 + 5.0 * 3.4 / 11.56) / (4.0 / 9.0 + 5.0 / 11.56);
         assert!((r.range_m - expected).abs() < 1e-5, "{r:?} vs {expected}");
@@ -187,12 +188,12 @@ mod tests {
         // Six ninths at 3 m, three at 8 m: two echoes; strongest is the near, last the far.
         let mut hits = vec![(3.0, 1.0 / 9.0, 1.0); 6];
         hits.extend(vec![(8.0, 1.0 / 64.0, 1.0); 3]);
-        let strongest = footprint(ReturnMode::Strongest).strongest_or_last(hits.clone());
-        let last = footprint(ReturnMode::Last).strongest_or_last(hits);
+        let strongest = footprint(ReturnMode::Strongest).strongest_or_last(&mut hits.clone());
+        let last = footprint(ReturnMode::Last).strongest_or_last(&mut hits);
         assert_eq!(strongest.map(|r| r.range_m), Some(3.0));
         assert_eq!(last.map(|r| r.range_m), Some(8.0));
         assert!((last.expect("last").intensity - 255.0 / 3.0).abs() < 1e-3);
-        assert_eq!(footprint(ReturnMode::Last).strongest_or_last(vec![]), None);
+        assert_eq!(footprint(ReturnMode::Last).strongest_or_last(&mut []), None);
     }
 
     #[test]
