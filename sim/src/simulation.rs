@@ -166,6 +166,8 @@ impl Simulation {
     /// route. Lets an evaluation show the frames a system was given without keeping them.
     pub fn rgbd_frame_at(&self, stamp_ns: i64) -> Option<RgbdFrame> {
         let rate_hz = self.placed.camera.rate_hz;
+        let offset_ns = self.placed.camera.clock_offset_ns;
+        let stamp_ns = stamp_ns - offset_ns;
         if stamp_ns < 0 || stamp_ns > self.duration_ns() || rate_hz.is_nan() || rate_hz <= 0.0 {
             return None;
         }
@@ -185,20 +187,20 @@ impl Simulation {
         let camera = RgbdCamera::new(&self.placed.camera, &self.world);
         let frame_ns = crate::sensors::sample_time_ns(k, rate_hz);
         Some(RgbdFrame {
-            stamp_ns: frame_ns,
+            stamp_ns: frame_ns + offset_ns,
             image: camera.render(&self.trajectory.pose(frame_ns), &mut rng),
         })
     }
 
     /// What pixel `(u, v)` of the colour camera (pixel centres at integers, as
-    /// [`crate::camera::Intrinsics`] has them) shows in the frame taken at `stamp_ns`: the
+    /// [`crate::camera::Intrinsics`] has them) shows in the frame stamped `stamp_ns`: the
     /// first surface on its ray, a fence panel told apart from the trellis posts whose wood
     /// it shares; `None` where the ray meets nothing (sky or background). Lets an
     /// evaluation say what a system's matched keypoints lay on.
     pub fn surface_at_pixel(&self, stamp_ns: i64, u: f64, v: f64) -> Option<Surface> {
         let cfg = &self.placed.camera;
         let intrinsics = crate::camera::Intrinsics::from_config(cfg);
-        let world_from_optical = self.trajectory.pose(stamp_ns)
+        let world_from_optical = self.trajectory.pose(stamp_ns - cfg.clock_offset_ns)
             * cfg.mount.base_from_sensor()
             * crate::camera::camera_from_optical();
         let [x, y, z] = intrinsics.ray(u, v);
@@ -225,13 +227,17 @@ impl Simulation {
         let mut cfg = self.placed.lidar.clone();
         cfg.noise = crate::config::NoiseProfile::None;
         let mut lidar = LidarSensor::new(&cfg, self.duration_ns(), stream(self.seed, "lidar"));
+        let stamp_ns = stamp_ns - cfg.clock_offset_ns;
         if stamp_ns < 0 || lidar.sweep_ns() <= 0 {
             return None;
         }
         lidar.start_at((stamp_ns / lidar.sweep_ns()) as u64);
         lidar.next_ready_ns()?;
         match lidar.emit(&self.scene()) {
-            Message::Lidar(scan) => Some(scan),
+            Message::Lidar(mut scan) => {
+                scan.stamp_ns += cfg.clock_offset_ns;
+                Some(scan)
+            }
             _ => None,
         }
     }
@@ -252,37 +258,71 @@ impl Simulation {
             list.push(Box::new(ImuSensor::new(&s.imu, end, rng("imu"))));
         }
         if sensors.wheel_odometry {
-            list.push(Box::new(WheelOdometrySensor::new(
-                &s.wheel_odometry,
-                end,
-                rng("odom"),
-            )));
+            list.push(on_clock(
+                Box::new(WheelOdometrySensor::new(
+                    &s.wheel_odometry,
+                    end,
+                    rng("odom"),
+                )),
+                s.wheel_odometry.clock_offset_ns,
+            ));
         }
         if sensors.scan2d {
-            list.push(Box::new(Scan2dSensor::new(
-                &s.scan2d_front,
-                ScanSide::Front,
-                end,
-                rng("scan_front"),
-            )));
-            list.push(Box::new(Scan2dSensor::new(
-                &s.scan2d_back,
-                ScanSide::Back,
-                end,
-                rng("scan_back"),
-            )));
+            for (cfg, side, tag) in [
+                (&s.scan2d_front, ScanSide::Front, "scan_front"),
+                (&s.scan2d_back, ScanSide::Back, "scan_back"),
+            ] {
+                list.push(on_clock(
+                    Box::new(Scan2dSensor::new(cfg, side, end, rng(tag))),
+                    cfg.clock_offset_ns,
+                ));
+            }
         }
         if sensors.lidar {
-            list.push(Box::new(LidarSensor::new(&s.lidar, end, rng("lidar"))));
+            list.push(on_clock(
+                Box::new(LidarSensor::new(&s.lidar, end, rng("lidar"))),
+                s.lidar.clock_offset_ns,
+            ));
         }
         if sensors.rgbd {
             let camera = RgbdCamera::new(&s.camera, &self.world);
-            list.push(Box::new(RgbdSensor::new(camera, end, rng("rgbd"))));
+            list.push(on_clock(
+                Box::new(RgbdSensor::new(camera, end, rng("rgbd"))),
+                s.camera.clock_offset_ns,
+            ));
         }
         Stream {
             scene: self.scene(),
             sensors: list,
         }
+    }
+}
+
+/// A sensor on a clock of its own (`clock_offset_ns`): each message stamped and available
+/// `offset_ns` after the measurement.
+#[derive(Debug)]
+struct Late {
+    sensor: Box<dyn Sensor>,
+    offset_ns: i64,
+}
+
+impl Sensor for Late {
+    fn next_ready_ns(&self) -> Option<i64> {
+        self.sensor.next_ready_ns().map(|t| t + self.offset_ns)
+    }
+
+    fn emit(&mut self, scene: &Scene<'_>) -> Message {
+        let mut message = self.sensor.emit(scene);
+        message.shift_stamp(self.offset_ns);
+        message
+    }
+}
+
+/// `sensor` as it is, or on a clock `offset_ns` late.
+fn on_clock(sensor: Box<dyn Sensor>, offset_ns: i64) -> Box<dyn Sensor> {
+    match offset_ns {
+        0 => sensor,
+        _ => Box::new(Late { sensor, offset_ns }),
     }
 }
 

@@ -216,6 +216,19 @@ impl SimConfig {
                 e.sigma_deg,
             )?;
         }
+        for (name, offset) in [
+            ("wheel_odometry", s.wheel_odometry.clock_offset_ns),
+            ("lidar", s.lidar.clock_offset_ns),
+            ("scan2d_front", s.scan2d_front.clock_offset_ns),
+            ("scan2d_back", s.scan2d_back.clock_offset_ns),
+            ("camera", s.camera.clock_offset_ns),
+        ] {
+            if !(0..=1_000_000_000).contains(&offset) {
+                return Err(format!(
+                    "sensors.{name}.clock_offset_ns = {offset}: must be 0 to 1000000000 (1 s)"
+                ));
+            }
+        }
         let c = &s.camera;
         positive("sensors.camera.rate_hz", c.rate_hz)?;
         if c.width < 2 || c.height < 2 {

@@ -99,6 +99,10 @@ pub struct WheelOdometryConfig {
     pub slip_per_slope: f64,
     /// Yaw-rate noise density, rad/s/√Hz, that grows like slip with the slope.
     pub yaw_rate_noise_density: f64,
+    /// This sensor's stamps against the IMU's clock, the systems' reference (and ground
+    /// truth's): a measurement taken at t is stamped t + offset and becomes available then,
+    /// as a sensor on another clock, or stamped on arrival, gives it. Nanoseconds, 0 to 1 s.
+    pub clock_offset_ns: i64,
 }
 
 impl Default for WheelOdometryConfig {
@@ -111,6 +115,7 @@ impl Default for WheelOdometryConfig {
             slip_sigma: 0.01,
             slip_per_slope: 0.5,
             yaw_rate_noise_density: 0.002,
+            clock_offset_ns: 0,
         }
     }
 }
@@ -148,6 +153,10 @@ pub struct LidarConfig {
     /// With a divergence: the echo reported when a footprint gives several, `strongest`
     /// (the most energy) or `last` (the farthest).
     pub return_mode: crate::sensors::lidar_footprint::ReturnMode,
+    /// This sensor's stamps against the IMU's clock, the systems' reference (and ground
+    /// truth's): a measurement taken at t is stamped t + offset and becomes available then,
+    /// as a sensor on another clock, or stamped on arrival, gives it. Nanoseconds, 0 to 1 s.
+    pub clock_offset_ns: i64,
 }
 
 impl Default for LidarConfig {
@@ -168,6 +177,7 @@ impl Default for LidarConfig {
             beam_divergence_mrad: [0.0, 0.0],
             echo_separation_m: 1.0,
             return_mode: crate::sensors::lidar_footprint::ReturnMode::Strongest,
+            clock_offset_ns: 0,
         }
     }
 }
@@ -188,6 +198,10 @@ pub struct Scan2dConfig {
     pub max_range_m: f64,
     pub noise: NoiseProfile,
     pub range_sigma_m: f64,
+    /// This sensor's stamps against the IMU's clock, the systems' reference (and ground
+    /// truth's): a measurement taken at t is stamped t + offset and becomes available then,
+    /// as a sensor on another clock, or stamped on arrival, gives it. Nanoseconds, 0 to 1 s.
+    pub clock_offset_ns: i64,
 }
 
 impl Default for Scan2dConfig {
@@ -203,6 +217,7 @@ impl Default for Scan2dConfig {
             max_range_m: 30.0,
             noise: NoiseProfile::Typical,
             range_sigma_m: 0.01,
+            clock_offset_ns: 0,
         }
     }
 }
@@ -273,6 +288,10 @@ pub struct CameraConfig {
     /// far clip plane (optical-axis depth); beyond it the background shows (Gazebo's
     /// `<clip><far>10.0</far>` of the Kinect's `camera` sensor).
     pub colour_far_clip_m: Option<f64>,
+    /// This sensor's stamps against the IMU's clock, the systems' reference (and ground
+    /// truth's): a measurement taken at t is stamped t + offset and becomes available then,
+    /// as a sensor on another clock, or stamped on arrival, gives it. Nanoseconds, 0 to 1 s.
+    pub clock_offset_ns: i64,
     /// What shows where no surface is seen: `"sky"` (ours: a sky gradient and a distant
     /// tree line) or a colour `[r, g, b]` (sRGB, 0-1), uniform (Gazebo's
     /// `<scene><background>0.7 0.7 0.7` in `vineyard_stage0_riseholme_vertical.world`,
@@ -337,6 +356,7 @@ impl Default for CameraConfig {
             depth_hfov_deg: None,
             depth_registration: DepthRegistration::Stretched,
             colour_far_clip_m: None,
+            clock_offset_ns: 0,
             background: Background::default(),
         }
     }

@@ -118,6 +118,20 @@ impl Message {
         }
     }
 
+    /// Moves the stamp by `ns` (a sensor on a clock of its own: `clock_offset_ns`); a
+    /// sweep's points keep their times relative to its stamp.
+    pub fn shift_stamp(&mut self, ns: i64) {
+        let stamp = match self {
+            Message::GroundTruth(m) => &mut m.stamp_ns,
+            Message::Imu(m) => &mut m.stamp_ns,
+            Message::WheelOdometry(m) => &mut m.stamp_ns,
+            Message::Lidar(m) => &mut m.stamp_ns,
+            Message::Scan2d(m) => &mut m.stamp_ns,
+            Message::Rgbd(m) => &mut m.stamp_ns,
+        };
+        *stamp += ns;
+    }
+
     /// Short name of the sensor, as used on the command line and in file names.
     pub fn sensor(&self) -> &'static str {
         match self {

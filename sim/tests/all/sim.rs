@@ -561,6 +561,83 @@ fn a_camera_frame_rendered_alone_is_the_streams_frame() {
     assert!(sim.rgbd_frame_at(sim.duration_ns() + 1).is_none());
 }
 
+/// Sensors on late clocks (`clock_offset_ns`): the same measurements, byte for byte, each
+/// stamped and delivered that much later (never before the IMU samples up to its stamp);
+/// what an evaluation renders at a stamp (`rgbd_frame_at`, `lidar_sweep_at`) follows.
+#[test]
+fn a_late_clock_stamps_the_same_measurements_later() {
+    const CAMERA_NS: i64 = 30_000_000;
+    const LIDAR_NS: i64 = 7_000_000;
+    let mut late = SimConfig::default();
+    late.sensors.camera.clock_offset_ns = CAMERA_NS;
+    late.sensors.lidar.clock_offset_ns = LIDAR_NS;
+    let messages = |config: &SimConfig| -> (Simulation, Vec<Message>) {
+        let sim = Simulation::new(config, "s0", 3).expect("S0 builds");
+        let m = sim
+            .stream(only("imu,lidar,rgbd"))
+            .take_while(|m| m.stamp_ns() < 250_000_000)
+            .collect();
+        (sim, m)
+    };
+    let (_, on_time) = messages(&SimConfig::default());
+    let (sim, shifted) = messages(&late);
+    let of = |list: &[Message], sensor: &str| -> Vec<Message> {
+        list.iter()
+            .filter(|m| m.sensor() == sensor)
+            .cloned()
+            .collect()
+    };
+    let imu = of(&on_time, "imu");
+    assert_eq!(of(&shifted, "imu"), imu, "the reference clock is untouched");
+    for (sensor, offset) in [("rgbd", CAMERA_NS), ("lidar", LIDAR_NS)] {
+        let a = of(&on_time, sensor);
+        let b = of(&shifted, sensor);
+        assert!(a.len() >= 2, "{sensor}: {} messages", a.len());
+        for (a, b) in a.iter().zip(&b) {
+            let mut a = a.clone();
+            a.shift_stamp(offset);
+            assert!(
+                a == *b,
+                "{sensor}: the same measurement, stamped {offset} ns later"
+            );
+        }
+    }
+    // Delivered no earlier than its stamp: every IMU sample stamped at or before a late
+    // message came before it (a frame exactly then, a sweep, stamped at its start, at its
+    // end).
+    for (i, m) in shifted.iter().enumerate() {
+        let before = shifted[..i].iter().filter(|p| p.sensor() == "imu").count();
+        let due = imu.iter().filter(|p| p.stamp_ns() <= m.stamp_ns()).count();
+        match m.sensor() {
+            "rgbd" => assert_eq!(before, due, "frame stamped {}", m.stamp_ns()),
+            "lidar" => assert!(before >= due, "sweep stamped {}", m.stamp_ns()),
+            _ => {}
+        }
+    }
+    let Message::Rgbd(frame) = &of(&shifted, "rgbd")[1] else {
+        unreachable!()
+    };
+    let alone = sim.rgbd_frame_at(frame.stamp_ns).expect("frame 1");
+    assert_eq!(alone.stamp_ns, frame.stamp_ns);
+    assert!(
+        alone.image.rgb == frame.image.rgb,
+        "the same frame by its late stamp"
+    );
+    let first = of(&shifted, "rgbd")[0].stamp_ns();
+    assert_eq!(first, CAMERA_NS, "the first frame, taken at 0");
+    let before = sim.rgbd_frame_at(frame.stamp_ns - 1).expect("frame 0");
+    assert_eq!(
+        before.stamp_ns, first,
+        "a stamp before frame 1's is frame 0's"
+    );
+    assert!(
+        sim.rgbd_frame_at(CAMERA_NS - 1).is_none(),
+        "before the first stamp"
+    );
+    let scan = of(&shifted, "lidar")[1].stamp_ns();
+    assert_eq!(sim.lidar_sweep_at(scan).expect("sweep 1").stamp_ns, scan);
+}
+
 /// A lidar sweep cast on its own (`Simulation::lidar_sweep_at`, what an evaluation shows of
 /// a lidar system's loop) is the stream's sweep at that stamp without its range noise: with
 /// the noise off, point for point the same; with it on, the same beams within a few σ.
