@@ -110,6 +110,12 @@ pub struct BenchConfig {
     /// with the values it takes; the sweep crosses them all.
     #[serde(default)]
     pub axes: toml::Table,
+    /// Sweeps only: named sets of world keys (`[variants.imu-tilt]` with
+    /// `"sensors.imu.mount_error.sigma_deg" = 1.0`; an empty `[variants.baseline]` is the
+    /// world as it is), each one value of a `variant` axis crossed with the others: one
+    /// factor at a time, where `[axes]` crosses every key with every other.
+    #[serde(default)]
+    pub variants: toml::Table,
     /// Simulator configuration (relative to this file); default: the embedded one.
     pub world: Option<PathBuf>,
     /// Extra directories to search for plugins (relative to this file).
@@ -215,9 +221,9 @@ impl BenchConfig {
         self.seed.unwrap_or(0)
     }
 
-    /// Whether the file has a sweep's keys (`seeds`, `[axes]`).
+    /// Whether the file has a sweep's keys (`seeds`, `[axes]`, `[variants]`).
     pub fn is_sweep(&self) -> bool {
-        self.seeds.is_some() || !self.axes.is_empty()
+        self.seeds.is_some() || !self.axes.is_empty() || !self.variants.is_empty()
     }
 
     fn validate(&self) -> anyhow::Result<()> {

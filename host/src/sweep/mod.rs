@@ -36,11 +36,77 @@ use crate::results::{
 };
 use crate::runner::{Plan, PlannedRun};
 
-/// One axis: a world key by its dotted path and the values it takes.
+/// One axis: a world key by its dotted path and the values it takes; or the sweep's
+/// `[variants]`, an axis called [`VARIANT`] whose values are the variants' names.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
     pub path: String,
     pub values: Vec<toml::Value>,
+    /// The variant axis only: the world keys (dotted path, value) each of its values sets,
+    /// in the order of `values`; empty for a key's own axis.
+    pub sets: Vec<Vec<(String, toml::Value)>>,
+}
+
+/// The name of the axis a sweep's `[variants]` make.
+pub const VARIANT: &str = "variant";
+
+impl Axis {
+    /// Sets this axis's `value` in a world's `table`.
+    fn apply(&self, table: &mut toml::Table, value: &toml::Value) -> Result<(), String> {
+        if self.sets.is_empty() {
+            return set_dotted(table, &self.path, value.clone());
+        }
+        let i = self
+            .values
+            .iter()
+            .position(|v| v == value)
+            .ok_or_else(|| format!("no variant {}", value_text(value)))?;
+        for (path, v) in &self.sets[i] {
+            set_dotted(table, path, v.clone())
+                .map_err(|why| format!("{} sets \"{path}\": {why}", value_text(value)))?;
+        }
+        Ok(())
+    }
+}
+
+/// The `variant` axis of a sweep file's `[variants]` (none without), variants in name order.
+fn variant_axis(
+    variants: &toml::Table,
+    keys: &toml::Table,
+    name: &str,
+) -> anyhow::Result<Option<Axis>> {
+    if variants.is_empty() {
+        return Ok(None);
+    }
+    let mut values = Vec::new();
+    let mut sets = Vec::new();
+    for (variant, settings) in variants {
+        let toml::Value::Table(settings) = settings else {
+            anyhow::bail!(
+                "{name}: variants.{variant}: give a table of world keys ([variants.{variant}])"
+            );
+        };
+        let mut set = Vec::new();
+        for (path, value) in settings {
+            if let toml::Value::Table(_) = value {
+                anyhow::bail!(
+                    "{name}: variants.{variant}.\"{path}\": a table; give each of its keys by its dotted path"
+                );
+            }
+            anyhow::ensure!(
+                !keys.contains_key(path),
+                "{name}: variants.{variant}.\"{path}\" is also an axis; set it in one place"
+            );
+            set.push((path.clone(), value.clone()));
+        }
+        values.push(toml::Value::String(variant.clone()));
+        sets.push(set);
+    }
+    Ok(Some(Axis {
+        path: VARIANT.to_owned(),
+        values,
+        sets,
+    }))
 }
 
 /// One run of the sweep.
@@ -179,7 +245,9 @@ pub const MAX_CELLS: usize = 100_000;
 /// TOML text is `base_world`; checks every resolved world and that it has the scenarios.
 /// A sweep beyond [`MAX_WORLDS`] or [`MAX_CELLS`] is refused before anything is expanded.
 pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result<Expansion> {
-    let mut axes = Vec::new();
+    let mut axes: Vec<Axis> = variant_axis(&cfg.variants, &cfg.axes, name)?
+        .into_iter()
+        .collect();
     for (path, values) in &cfg.axes {
         let values = match values {
             toml::Value::Array(a) if !a.is_empty() => a.clone(),
@@ -198,6 +266,7 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
         axes.push(Axis {
             path: path.clone(),
             values,
+            sets: Vec::new(),
         });
     }
     let seeds = cfg
@@ -233,8 +302,11 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
     for point in points(&axes) {
         let mut table = base.clone();
         for (axis, value) in axes.iter().zip(&point) {
-            set_dotted(&mut table, &axis.path, value.clone())
-                .map_err(|why| anyhow::anyhow!("{name}: axes.\"{}\": {why}", axis.path))?;
+            axis.apply(&mut table, value)
+                .map_err(|why| match axis.sets.is_empty() {
+                    true => anyhow::anyhow!("{name}: axes.\"{}\": {why}", axis.path),
+                    false => anyhow::anyhow!("{name}: variants: {why}"),
+                })?;
         }
         let text = toml::to_string(&table)?;
         let origin = format!(
@@ -258,6 +330,10 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
                     .join(", ")
             );
         }
+        // The world resolved, every key stated: its profile's models are in the key (a
+        // changed profile file is another world, never a stale run) and in the file the
+        // runs read (what they run cannot change with the binary that runs them).
+        let text = world.to_toml_string();
         let key = short_hash(text.as_bytes());
         worlds.insert(key.clone(), text);
         point_worlds.push((point, key));
@@ -644,6 +720,67 @@ mod tests {
         }
     }
 
+    /// The sensitivity study's variants are the `field` profile's factors: each sets its
+    /// keys to `field`'s values, and the ORB-SLAM3 file has the same variants as the other.
+    #[test]
+    fn every_factor_variant_is_the_field_profiles_value() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/study/realism");
+        let world = std::fs::read_to_string(dir.join("../../paper-world.toml")).expect("world");
+        let field: toml::Table = sim::SimConfig::from_toml_str_as(
+            &world,
+            "paper world",
+            Some(sim::config::Profile::Field),
+        )
+        .expect("resolves")
+        .to_toml_string()
+        .parse()
+        .expect("TOML");
+        let at = |path: &str| {
+            path.split('.')
+                .try_fold(&toml::Value::Table(field.clone()), |v, k| v.get(k))
+                .cloned()
+        };
+        let mut files = Vec::new();
+        for entry in std::fs::read_dir(&dir).expect("realism") {
+            let path = entry.expect("entry").path();
+            let name = path
+                .file_name()
+                .expect("name")
+                .to_string_lossy()
+                .into_owned();
+            if name.starts_with("factors-") && name.ends_with(".toml") {
+                let cfg = BenchConfig::from_file(&path).expect("sweep file");
+                assert!(cfg.variants.len() > 2, "{name}: the factors and typical");
+                assert!(
+                    cfg.variants["typical"]
+                        .as_table()
+                        .expect("table")
+                        .is_empty()
+                );
+                for (variant, sets) in &cfg.variants {
+                    for (path, value) in sets.as_table().expect("table") {
+                        let mut want = at(path);
+                        // `field` keeps floats as floats; the file may write 1.0 as 1.0.
+                        if let (Some(toml::Value::Float(f)), toml::Value::Integer(i)) =
+                            (&want, value)
+                        {
+                            assert_eq!(*f, *i as f64, "{name}: variants.{variant}.{path}");
+                            want = Some(value.clone());
+                        }
+                        assert_eq!(
+                            want.as_ref(),
+                            Some(value),
+                            "{name}: variants.{variant}.{path}"
+                        );
+                    }
+                }
+                files.push((name, cfg.variants));
+            }
+        }
+        assert_eq!(files.len(), 2, "{files:?}");
+        assert_eq!(files[0].1, files[1].1, "the same variants in both files");
+    }
+
     /// fuzz/regressions/sweep_toml/a-million-worlds.toml: six axes of ten values, a
     /// million worlds, each resolved and checked before the sweep started (a fuzzer's
     /// timeout); a sweep past the limits is now refused before it expands.
@@ -670,16 +807,99 @@ mod tests {
         assert!(err.contains("more than 100000 runs"), "{err}");
     }
 
+    /// `[variants]`: one point per variant, each setting only its own keys, crossed with
+    /// the axes (the variant outermost); the mistakes a user makes are refused by name.
+    #[test]
+    fn variants_set_their_own_keys_one_factor_at_a_time() {
+        let sweep = |body: &str| {
+            let text = format!("scenarios = [\"s0\"]\n{body}\n[[plugins]]\nname = \"x\"\n");
+            let cfg = BenchConfig::from_toml(&text, Path::new("v.toml")).expect("bench file");
+            expand(&cfg, "v.toml", sim::DEFAULT_CONFIG_TOML)
+        };
+        let e = sweep(
+            "[axes]\n\"vineyard.growth_stage\" = [1, 3]\n\
+             [variants.baseline]\n\
+             [variants.tilt]\n\"sensors.imu.mount_error.sigma_deg\" = 1.0\n\
+             [variants.spot]\n\"sensors.lidar.beam_divergence_mrad\" = [3.0, 1.5]\n\
+             \"sensors.lidar.return_mode\" = \"last\"\n",
+        )
+        .expect("expands");
+        assert_eq!(e.axes[0].path, VARIANT);
+        assert_eq!(e.points.len(), 6, "three variants x two stages");
+        let world = |i: usize| {
+            sim::SimConfig::from_toml_str(&e.worlds[&e.points[i].1], "w").expect("resolves")
+        };
+        let names: Vec<String> = e.points.iter().map(|(p, _)| value_text(&p[0])).collect();
+        assert_eq!(
+            names,
+            [
+                "\"baseline\"",
+                "\"baseline\"",
+                "\"spot\"",
+                "\"spot\"",
+                "\"tilt\"",
+                "\"tilt\""
+            ]
+        );
+        let (base, spot, tilt) = (world(0), world(3), world(4));
+        assert_eq!(base.vineyard.growth_stage, 1.0);
+        assert_eq!(spot.vineyard.growth_stage, 3.0);
+        assert_eq!(base.sensors.imu.mount_error.sigma_deg, 0.0);
+        assert_eq!(tilt.sensors.imu.mount_error.sigma_deg, 1.0);
+        assert_eq!(
+            tilt.sensors.lidar.beam_divergence_mrad,
+            [0.0, 0.0],
+            "only its own keys"
+        );
+        assert_eq!(spot.sensors.lidar.beam_divergence_mrad, [3.0, 1.5]);
+        assert_eq!(spot.sensors.imu.mount_error.sigma_deg, 0.0);
+        assert_ne!(
+            e.points[0].1, e.points[4].1,
+            "another world, so other run keys"
+        );
+        // Each world kept resolved: its profile's models are stated, so a changed profile
+        // file gives another key and a run reads the world its key names.
+        let text = &e.worlds[&e.points[0].1];
+        assert!(text.contains("accel_noise_density"), "{text}");
+        assert_eq!(
+            sim::SimConfig::from_toml_str(text, "w")
+                .expect("resolves")
+                .to_toml_string(),
+            *text
+        );
+
+        for (body, says) in [
+            ("[variants]\nx = 1", "variants.x: give a table"),
+            (
+                "[variants.x]\n\"sensors.imu.mount_error\" = { sigma_deg = 1.0 }",
+                "a table; give each of its keys",
+            ),
+            (
+                "[axes]\n\"vineyard.growth_stage\" = [1]\n[variants.x]\n\"vineyard.growth_stage\" = 2",
+                "is also an axis",
+            ),
+            (
+                "[variants.x]\n\"sensors.imu.no_such_key\" = 1.0",
+                "no_such_key",
+            ),
+        ] {
+            let err = format!("{:#}", sweep(body).expect_err(body));
+            assert!(err.contains(says), "{body}: {err}");
+        }
+    }
+
     #[test]
     fn points_cross_every_axis_last_fastest() {
         let axes = vec![
             Axis {
                 path: "a".into(),
                 values: vec![1.into(), 2.into()],
+                sets: Vec::new(),
             },
             Axis {
                 path: "b".into(),
                 values: vec!["x".into(), "y".into(), "z".into()],
+                sets: Vec::new(),
             },
         ];
         let p: Vec<String> = points(&axes)

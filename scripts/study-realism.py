@@ -1,0 +1,313 @@
+#!/usr/bin/env python3
+"""Issue 45's sensitivity table (docs/realism/sensitivity.md and its figure) from the runs
+scripts/study-realism.sh kept in docs/realism/runs/<world>/<key>/ (cell.json, metrics.json,
+timing.json of each run of configs/study/realism/):
+
+- the ladder: every system on S3 under `ideal`, `paper`, `typical` and `field`, ATE RMSE
+  mean ± sample std over the seeds, drift per 100 m, false loops and wrong joins of the
+  final map, dropped messages; the ranking of the systems on each rung;
+- the factors: each factor family of `field` switched on alone over `typical` (one seed),
+  ATE RMSE and its change, and which factor costs each system most.
+
+    python3 scripts/study-realism.py [--kept DIR] [--out FILE] [--figure FILE]
+    python3 scripts/study-realism.py --resume configs/study/realism/X.toml --kept DIR/<world>
+
+A run's key hashes the plugin library's bytes, which change with a rebuild; `--resume`
+writes, beside the sweep file, one narrowed copy per point of its axes and variants and
+seed that still lacks a kept run of some system, with only those systems, so that a study
+spread over sessions (and rebuilds) runs each cell once.
+"""
+
+import argparse
+import json
+import math
+import re
+import statistics
+import tomllib
+from pathlib import Path
+
+RUNGS = ["ideal", "paper", "typical", "field"]
+# Published S3 figures as context, not as a target: Hroob et al. 2021, Table 2 (ATE, m).
+PAPER_S3 = {"lio-sam": 0.40, "staticmapping": 1.51, "orbslam2": 5.22, "rtabmap": 0.07}
+
+
+def toml_text(v):
+    """A TOML value as the sweep prints it in a run's `point`."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_text(x) for x in v) + "]"
+    if isinstance(v, str):
+        return json.dumps(v)
+    return repr(v)
+
+
+def normal(point):
+    """A point as a dict, the baseline variant `typical` dropped: a factor sweep's
+    `typical` is the same run as the ladder's `typical` rung (the same world, so the
+    same key), and a run kept by either stands for both."""
+    p = dict(point)
+    if p.get("variant") == '"typical"':
+        del p["variant"]
+    return p
+
+
+def load(kept):
+    """Every kept run: its cell, metrics and timing, with the world folder's name."""
+    runs = []
+    for cell_path in sorted(Path(kept).glob("*/*/cell.json")):
+        d = cell_path.parent
+        run = {"world": d.parent.name, "cell": json.loads(cell_path.read_text())}
+        for name in ["metrics", "timing"]:
+            f = d / f"{name}.json"
+            run[name] = json.loads(f.read_text()) if f.exists() else None
+        runs.append(run)
+    return runs
+
+
+def points_of(cfg):
+    """Every point of a sweep file as [(key, TOML text)], variants outermost, then the
+    axes in file order, the last fastest (as `vinebench sweep` expands them)."""
+    points = [[]]
+    variants = sorted(cfg.get("variants", {}))
+    if variants:
+        points = [[("variant", toml_text(v))] for v in variants]
+    for key, values in cfg.get("axes", {}).items():
+        points = [p + [(key, toml_text(v))] for p in points for v in values]
+    return points
+
+
+def resume_files(sweep_file, kept, write_dir):
+    """One narrowed copy of `sweep_file` per (point, seed) some of whose systems have no
+    kept run in `kept` (a world's folder of kept runs), with only those systems.
+    Returns their paths."""
+    path = Path(sweep_file)
+    text = path.read_text()
+    cfg = tomllib.loads(text)
+    have = set()
+    for cell_path in Path(kept).glob("*/cell.json"):
+        c = json.loads(cell_path.read_text())
+        have.add((c["label"], c["scenario"], c["seed"], tuple(sorted(normal(c["point"]).items()))))
+    head, *blocks = re.split(r"(?m)^(?=\[\[plugins\]\])", text)
+    labels = [tomllib.loads(b)["plugins"][0].get("label") or tomllib.loads(b)["plugins"][0]["name"]
+              for b in blocks]
+    written = []
+    for i, point in enumerate(points_of(cfg)):
+        key = tuple(sorted(normal(point).items()))
+        for seed in cfg.get("seeds", [cfg.get("seed", 0)]):
+            missing = [b for b, label in zip(blocks, labels)
+                       if not all((label, s, seed, key) in have for s in cfg["scenarios"])]
+            if not missing:
+                continue
+            narrowed = re.sub(r"(?m)^seeds = .*$", f"seeds = [{seed}]", head)
+            for k, v in point:
+                if k == "variant":
+                    name = json.loads(v)
+                    # Keep this variant's table, drop the others'.
+                    narrowed = re.sub(r"(?ms)^\[variants\.([^\]]+)\]\n.*?(?=^\[|\Z)",
+                                      lambda m: m.group(0) if m.group(1) == name else "",
+                                      narrowed)
+                else:
+                    narrowed, n = re.subn(rf'(?m)^"{re.escape(k)}" = .*$', f'"{k}" = [{v}]',
+                                          narrowed)
+                    assert n == 1, f"{sweep_file}: axis {k} not on a line of its own"
+            narrowed = narrowed.rstrip() + "\n\n" + "".join(missing)
+            check = tomllib.loads(narrowed)
+            assert check["seeds"] == [seed] and len(check["plugins"]) == len(missing)
+            assert points_of(check) == [point], (points_of(check), point)
+            out = Path(write_dir) / f".{path.stem}.resume-{i}-{seed}.toml"
+            out.write_text(narrowed)
+            written.append(out)
+    return written
+
+
+def summary(values):
+    """`mean ± std (n)` of a list (std the sample's; a single value alone)."""
+    if not values:
+        return "–"
+    if len(values) == 1:
+        return f"{values[0]:.3f}"
+    return f"{statistics.mean(values):.3f} ± {statistics.stdev(values):.3f}"
+
+
+def row_of(run):
+    """(system, rung, variant, seed) of a run and its numbers."""
+    c, m, t = run["cell"], run["metrics"], run["timing"]
+    p = normal(c["point"])
+    rung = json.loads(p.get("profile", '"?"'))
+    variant = json.loads(p["variant"]) if "variant" in p else None
+    ok = c["status"] == "ok" and m is not None
+    joins = (m or {}).get("joins") or {}
+    drift = (m or {}).get("drift") or {}
+    return {
+        "world": run["world"], "system": c["label"], "rung": rung, "variant": variant,
+        "seed": c["seed"], "ok": ok, "status": c["status"],
+        "ate": m["ape"]["rmse"] if ok else None,
+        "drift_pct": drift.get("translation_percent") if ok else None,
+        "drift_deg": drift.get("rotation_deg_per_100m") if ok else None,
+        "false_loops": m["loops"]["accepted_false"] if ok else None,
+        "wrong_joins": joins.get("wrong_joins") if ok else None,
+        "dropped": sum((t or {}).get("dropped", {}).values()),
+    }
+
+
+def svg_ladder(rows, systems, path):
+    """ATE RMSE (log scale) of each system on each rung, mean and the seeds' range."""
+    w, h, left, right, top, bottom = 720, 420, 70, 190, 20, 50
+    vals = [r["ate"] for r in rows if r["ate"]]
+    if not vals:
+        return
+    lo = 10 ** math.floor(math.log10(min(vals)))
+    hi = 10 ** math.ceil(math.log10(max(vals)))
+    x = lambda i: left + (i + 0.5) * (w - left - right) / len(RUNGS)
+    y = lambda v: top + (math.log10(hi) - math.log10(v)) / (math.log10(hi) - math.log10(lo)) * (h - top - bottom)
+    colours = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d",
+               "#666666", "#1f78b4"]
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
+           f'font-family="sans-serif" font-size="12">',
+           f'<rect width="{w}" height="{h}" fill="white"/>']
+    d = lo
+    while d <= hi * 1.0001:
+        out.append(f'<line x1="{left}" x2="{w - right}" y1="{y(d):.1f}" y2="{y(d):.1f}" stroke="#ddd"/>')
+        out.append(f'<text x="{left - 6}" y="{y(d) + 4:.1f}" text-anchor="end">{d:g}</text>')
+        d *= 10
+    for i, rung in enumerate(RUNGS):
+        out.append(f'<text x="{x(i):.1f}" y="{h - bottom + 18}" text-anchor="middle">{rung}</text>')
+    out.append(f'<text x="14" y="{(h - bottom + top) / 2:.0f}" transform="rotate(-90 14 '
+               f'{(h - bottom + top) / 2:.0f})" text-anchor="middle">ATE RMSE (m), S3</text>')
+    for k, system in enumerate(systems):
+        colour = colours[k % len(colours)]
+        dx = (k - (len(systems) - 1) / 2) * 4
+        line = []
+        for i, rung in enumerate(RUNGS):
+            v = [r["ate"] for r in rows if r["system"] == system and r["rung"] == rung and r["ate"]]
+            if not v:
+                continue
+            m = statistics.mean(v)
+            line.append(f"{x(i) + dx:.1f},{y(m):.1f}")
+            out.append(f'<line x1="{x(i) + dx:.1f}" x2="{x(i) + dx:.1f}" y1="{y(min(v)):.1f}" '
+                       f'y2="{y(max(v)):.1f}" stroke="{colour}"/>')
+            out.append(f'<circle cx="{x(i) + dx:.1f}" cy="{y(m):.1f}" r="3.5" fill="{colour}"/>')
+        if len(line) > 1:
+            out.append(f'<polyline points="{" ".join(line)}" fill="none" stroke="{colour}" '
+                       f'stroke-width="1.5"/>')
+        ly = top + 16 * k + 8
+        out.append(f'<circle cx="{w - right + 16}" cy="{ly}" r="4" fill="{colour}"/>')
+        out.append(f'<text x="{w - right + 26}" y="{ly + 4}">{system}</text>')
+    out.append("</svg>")
+    Path(path).write_text("\n".join(out) + "\n")
+
+
+def tables(runs, figure):
+    rows = [row_of(r) for r in runs]
+    out = []
+    for world in sorted({r["world"] for r in rows}):
+        wrows = [r for r in rows if r["world"] == world]
+        ladder = [r for r in wrows if r["variant"] is None]
+        systems = sorted({r["system"] for r in wrows})
+        out.append(f"## {world}: the ladder (S3, mean ± sample std over seeds)\n")
+        out.append("ATE RMSE (m); runs that did not end ok are counted apart.\n")
+        out.append("| system | " + " | ".join(RUNGS) + " | Hroob et al. Table 2, S3 |")
+        out.append("|---|" + "---:|" * (len(RUNGS) + 1))
+        for s in systems:
+            cells = []
+            for rung in RUNGS:
+                here = [r for r in ladder if r["system"] == s and r["rung"] == rung]
+                ok = [r["ate"] for r in here if r["ok"]]
+                bad = len(here) - len(ok)
+                cell = summary(ok) + (f" ({len(ok)} seeds)" if len(ok) > 1 else "")
+                cells.append(cell + (f", {bad} failed" if bad else "") if here else "–")
+            out.append(f"| {s} | " + " | ".join(cells) + f" | {PAPER_S3.get(s, '–')} |")
+        out.append("")
+        out.append("Drift per 100 m (translation % / rotation °), mean over seeds; false loops, "
+                   "wrong joins of the final map and dropped messages, summed over seeds:\n")
+        out.append("| system | " + " | ".join(RUNGS) + " |")
+        out.append("|---|" + "---|" * len(RUNGS))
+        for s in systems:
+            cells = []
+            for rung in RUNGS:
+                ok = [r for r in ladder if r["system"] == s and r["rung"] == rung and r["ok"]]
+                if not ok:
+                    cells.append("–")
+                    continue
+                pct = statistics.mean(r["drift_pct"] for r in ok)
+                deg = statistics.mean(r["drift_deg"] for r in ok)
+                fl = sum(r["false_loops"] or 0 for r in ok)
+                wj = sum(r["wrong_joins"] or 0 for r in ok)
+                dr = sum(r["dropped"] for r in ok)
+                cells.append(f"{pct:.2f} % / {deg:.1f}°; {fl} false, {wj} wrong, {dr} dropped")
+            out.append(f"| {s} | " + " | ".join(cells) + " |")
+        out.append("")
+        out.append("The systems ranked by mean ATE RMSE on each rung (best first):\n")
+        for rung in RUNGS:
+            means = []
+            for s in systems:
+                ok = [r["ate"] for r in ladder if r["system"] == s and r["rung"] == rung and r["ok"]]
+                if ok:
+                    means.append((statistics.mean(ok), s))
+            if means:
+                out.append(f"- `{rung}`: " + ", ".join(s for _, s in sorted(means)))
+        out.append("")
+        if figure:
+            svg_ladder([r for r in ladder if r["ok"]], systems, Path(figure).with_name(
+                f"{Path(figure).stem}-{world}.svg"))
+            out.append(f"![ATE RMSE per rung]({Path(figure).stem}-{world}.svg)\n")
+
+        factor_rows = [r for r in wrows if r["variant"] is not None
+                       or (r["rung"] == "typical" and r["seed"] == 0)]
+        variants = sorted({r["variant"] for r in factor_rows if r["variant"]})
+        if variants:
+            out.append(f"## {world}: each factor alone over `typical` (S3, seed 0)\n")
+            out.append("ATE RMSE (m), and its change against `typical`:\n")
+            out.append("| system | typical | " + " | ".join(variants) + " | costs most |")
+            out.append("|---|---:|" + "---:|" * len(variants) + "---|")
+            for s in systems:
+                base = [r for r in factor_rows if r["system"] == s and r["variant"] is None
+                        and r["rung"] == "typical" and r["seed"] == 0]
+                b = base[0]["ate"] if base and base[0]["ok"] else None
+                cells, worst = [], None
+                for v in variants:
+                    here = [r for r in factor_rows if r["system"] == s and r["variant"] == v]
+                    if not here:
+                        cells.append("–")
+                    elif not here[0]["ok"]:
+                        cells.append(f"failed ({here[0]['status']})")
+                    elif b is None:
+                        cells.append(f"{here[0]['ate']:.3f}")
+                    else:
+                        a = here[0]["ate"]
+                        cells.append(f"{a:.3f} ({a - b:+.3f})")
+                        if worst is None or a - b > worst[0]:
+                            worst = (a - b, v)
+                most = f"{worst[1]} ({worst[0]:+.3f} m)" if worst and worst[0] > 0 else "–"
+                out.append(f"| {s} | {b:.3f} | " if b is not None else f"| {s} | – | ")
+                out[-1] += " | ".join(cells) + f" | {most} |"
+            out.append("")
+    return "\n".join(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--kept", default="docs/realism/runs")
+    ap.add_argument("--out", default="docs/realism/sensitivity.md")
+    ap.add_argument("--figure", default="docs/realism/sensitivity.svg",
+                    help="the ladder figure's path; one per world, the world's name appended")
+    ap.add_argument("--resume", metavar="SWEEP.toml",
+                    help="write beside it the narrowed sweep files of what --kept (a world's "
+                         "folder) lacks, print their paths and stop")
+    args = ap.parse_args()
+    if args.resume:
+        for f in resume_files(args.resume, args.kept, Path(args.resume).parent):
+            print(f)
+        return
+    runs = load(args.kept)
+    head = ("# Sensitivity of the systems to the realism ladder (issue 45)\n\n"
+            "Written by `scripts/study-realism.py` from the runs kept in "
+            f"`{args.kept}/` ({len(runs)} runs); how they were made: "
+            "[README.md](README.md).\n\n")
+    Path(args.out).write_text(head + tables(runs, args.figure))
+    print(f"{args.out}: {len(runs)} runs")
+
+
+if __name__ == "__main__":
+    main()
