@@ -81,6 +81,8 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
         args.poll_s
     );
     sweep.prepare(&out)?;
+    // Why the runs the host failed were not filed (local runs only).
+    let mut unfiled = Vec::new();
     if !args.collect {
         let missing = sweep.missing(&out);
         let distinct = sweep
@@ -117,7 +119,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
                         .jobs
                         .or(sweep.cfg.jobs)
                         .unwrap_or_else(crate::cmd::bench::default_jobs);
-                    sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
+                    unfiled = sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
                         // Cells finish in any order; they weigh the same, so each
                         // counts as the next unfinished one.
                         progress.finished(usize::MAX, &cell.describe(), outcome)
@@ -152,10 +154,12 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     );
     let missing = agg.missing();
     if missing > 0 && !args.collect {
+        let why = match unfiled.first() {
+            Some(why) => format!("the first because {why}"),
+            None => format!("see {}/slurm/*/task-*.log if on Slurm", out.display()),
+        };
         anyhow::bail!(
-            "{missing} runs did not file a result (see {}/slurm/*/task-*.log if on Slurm); \
-             run the sweep again to run them",
-            out.display()
+            "{missing} runs did not file a result ({why}); run the sweep again to run them"
         );
     }
     let failed = agg.failed();

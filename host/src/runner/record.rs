@@ -101,7 +101,7 @@ pub fn record(
     ahead: bool,
 ) -> Result<(), String> {
     let exe = std::env::current_exe()
-        .map_err(|e| format!("cannot find the vinebench executable: {e}"))?;
+        .map_err(|e| format!("{CANNOT_RECORD}: cannot find the vinebench executable: {e}"))?;
     let mut args: Vec<std::ffi::OsString> = vec![
         "record".into(),
         "--scenario".into(),
@@ -143,7 +143,7 @@ pub fn record(
         Ok(child) => child,
         // No `nice` here: the recording at the normal priority.
         Err(_) => spawn(Command::new(&exe).args(&args))
-            .map_err(|e| format!("cannot start `vinebench record`: {e}"))?,
+            .map_err(|e| format!("{CANNOT_RECORD}: cannot start `vinebench record`: {e}"))?,
     };
     let mut stderr = child.stderr.take();
     // The child's messages, read as they come so that a chatty child never blocks.
@@ -170,7 +170,7 @@ pub fn record(
     match status {
         Ok(s) if s.success() && rec.path.is_file() => Ok(()),
         Ok(s) => Err(format!(
-            "recording {} failed ({s}): {}",
+            "{CANNOT_RECORD} {} ({s}): {}",
             rec.scenario,
             text.lines().last().unwrap_or("no message")
         )),
@@ -188,6 +188,10 @@ pub fn record(
         }
     }
 }
+
+/// How the failure of a run whose recording could not be made begins (a full disk, say: the
+/// host's doing, not the plugin's, so a sweep does not file the run).
+pub const CANNOT_RECORD: &str = "could not record";
 
 /// The recordings of a plan, made in order by one thread ahead of the runs that replay them,
 /// at most `limit` on disk at once.

@@ -30,10 +30,11 @@ pub fn supervise(
 /// gone or replaced by a rebuild, no processes left): the host's failure, not the plugin's.
 pub const CANNOT_START: &str = "cannot start the worker process";
 
-/// Whether a run's failure reason is that its worker could not be started: a sweep does not
-/// file such a run, so that resuming it runs it (as an interrupted one).
+/// Whether a run's failure reason is the host's, not the plugin's: its worker could not be
+/// started, or the recording it was to replay could not be made. A sweep does not file such
+/// a run, so that resuming it runs it (as an interrupted one).
 pub fn is_start_failure(reason: &str) -> bool {
-    reason.starts_with(CANNOT_START)
+    reason.starts_with(CANNOT_START) || reason.starts_with(super::record::CANNOT_RECORD)
 }
 
 /// Starts the worker on the job file in `run_dir` (absolute), in that folder. With `fed`,

@@ -596,25 +596,35 @@ pub fn read_filed(dir: &Path) -> anyhow::Result<Filed> {
 }
 
 /// Runs `cells` here, `jobs` at once, filing each run as it ends; `on_filed` is called after
-/// each with its outcome, its folder where it was filed (for progress).
+/// each with its outcome, its folder where it was filed (for progress). Returns why the
+/// runs the host failed (a worker that could not start, a recording that could not be
+/// made) were not filed.
 pub fn run_local(
     sweep: &Sweep,
     out: &Path,
     cells: &[&Cell],
     jobs: usize,
     on_filed: &(dyn Fn(&Cell, &RunOutcome) + Sync),
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     let failures = std::sync::Mutex::new(Vec::new());
+    let unfiled = std::sync::Mutex::new(Vec::new());
     for (n, (plan, group)) in sweep.plans(out, cells, jobs).into_iter().enumerate() {
         let work = work_dir(out, &n.to_string());
         let filed = |i: usize, outcome: &RunOutcome| {
-            if let RunStatus::Failed(why) = &outcome.status
-                && (crate::runner::interrupt::is_interruption(why)
-                    || crate::runner::supervise::is_start_failure(why))
-            {
-                // Not filed: an interrupted run, or one whose worker could not start (the
-                // host's doing, not the plugin's), runs again when the sweep resumes.
-                return;
+            if let RunStatus::Failed(why) = &outcome.status {
+                // Not filed: an interrupted run, or one whose worker could not start or
+                // whose recording could not be made (the host's doing, not the plugin's),
+                // runs again when the sweep resumes.
+                if crate::runner::interrupt::is_interruption(why) {
+                    return;
+                }
+                if crate::runner::supervise::is_start_failure(why) {
+                    unfiled
+                        .lock()
+                        .expect("no panics while holding the lock")
+                        .push(why.clone());
+                    return;
+                }
             }
             let cell = &group[i];
             match file_run(
@@ -651,7 +661,9 @@ pub fn run_local(
             anyhow::bail!("filing a run: {first}");
         }
     }
-    Ok(())
+    Ok(unfiled
+        .into_inner()
+        .expect("no panics while holding the lock"))
 }
 
 #[cfg(test)]

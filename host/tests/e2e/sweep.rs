@@ -282,6 +282,39 @@ fn bad_sweep_inputs_are_one_line_naming_the_culprit() {
     assert!(!o.status.success() && text(&o.stderr).contains("not a vinebench sweep folder"));
 }
 
+/// A run whose recording could not be made is the host's failure, not the plugin's (here a
+/// file-size limit kills `vinebench record`, as a full disk would): the sweep files no run,
+/// says why, and started again with room it runs them.
+#[test]
+fn a_run_whose_recording_failed_is_not_filed_and_runs_on_resume() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let file = write(
+        tmp.path(),
+        "recorded.toml",
+        "scenarios = [\"s1\"]\nseeds = [0]\nmax_time_s = 20.0\nrecord_once = true\n\
+         [[plugins]]\nname = \"wheel-odometry\"\nlabel = \"odometry\"\n",
+    );
+    let out = tmp.path().join("out");
+    // 20 s of IMU, odometry and ground truth is some 600 kB; the limit is 100 kB.
+    let o = Command::new("sh")
+        .args(["-c", "ulimit -f 100 && exec \"$0\" \"$@\""])
+        .arg(env!("CARGO_BIN_EXE_vinebench"))
+        .args(["sweep", file.to_str().expect("utf-8"), "--out"])
+        .arg(&out)
+        .env("VINEBENCH_PLUGIN_PATH", deps_dir())
+        .output()
+        .expect("vinebench runs");
+    let err = text(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("could not record s1"), "{err}");
+    assert!(filed_runs(&out).is_empty(), "{:?}", filed_runs(&out));
+    let o = sweep(&file, &out, &[]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let runs = filed_runs(&out);
+    assert_eq!(runs.len(), 1);
+    assert_eq!(json(&runs[0].join("cell.json"))["status"], "ok");
+}
+
 /// Whether the test command has set up Slurm (`scripts/slurm-local.sh`): then a missing
 /// Slurm is a failure, not a reason to skip.
 fn slurm_required() -> bool {
