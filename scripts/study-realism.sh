@@ -17,7 +17,8 @@ cd "$(dirname "$0")/.."
 results=results/realism
 kept=docs/realism/runs
 vb=target/release/vinebench
-all=(ladder-paper-world factors-paper-world ladder-paper-world-orbslam3 factors-paper-world-orbslam3)
+all=(ladder-paper-world factors-paper-world ladder-paper-world-camera factors-paper-world-camera
+     ladder-paper-world-orbslam3 factors-paper-world-orbslam3)
 
 save() {
     for dir in "$results"/*/runs/*/; do
@@ -54,6 +55,7 @@ for s in "${sweeps[@]}"; do
     file="configs/study/realism/$s.toml"
     world=${s#*-}
     world=${world%-orbslam3}
+    world=${world%-camera}
     resumes=$(python3 scripts/study-realism.py --resume "$file" --kept "$kept/$world")
     [ -n "$resumes" ] || { echo "$s: every run kept"; continue; }
     for resume in $resumes; do
