@@ -36,6 +36,11 @@ pub struct BenchArgs {
     /// the simulation paid once, recorded ahead at the lowest CPU priority.
     #[arg(long)]
     pub record_once: bool,
+    /// The sensors' models, whatever the world file's `profile` says: ideal, paper, typical
+    /// or field (configs/profiles/); `vinebench bench configs/paper.toml --profile field`
+    /// is the paper bench under the field's troubles.
+    #[arg(long, value_parser = crate::cmd::sim_args::parse_profile)]
+    pub profile: Option<sim::config::Profile>,
 }
 
 /// Runs at once when nobody says: one per core.
@@ -77,8 +82,9 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join(stem));
+    let world = crate::cmd::sim_args::WorkersWorld::new(cfg.world.as_deref(), args.profile, &out)?;
     let plan = Plan {
-        world: cfg.world.clone(),
+        world: world.path().map(PathBuf::from),
         seed: cfg.bench_seed(),
         scenarios: cfg.scenarios.clone(),
         runs,

@@ -28,9 +28,13 @@ pub struct RecordArgs {
 
 /// What made the recording, stored as its `vinebench` metadata record.
 fn metadata(args: &RecordArgs) -> anyhow::Result<BTreeMap<String, String>> {
-    let world = match &args.sim.world {
-        Some(p) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
-        None => sim::DEFAULT_CONFIG_TOML.to_owned(),
+    let world = match (&args.sim.world, args.sim.profile) {
+        // Under another profile: the world as it was resolved.
+        (world, Some(profile)) => {
+            sim::SimConfig::load_as(world.as_deref(), Some(profile))?.to_toml_string()
+        }
+        (Some(p), None) => std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
+        (None, None) => sim::DEFAULT_CONFIG_TOML.to_owned(),
     };
     Ok(BTreeMap::from([
         ("scenario".to_owned(), args.sim.scenario.clone()),

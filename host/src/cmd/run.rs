@@ -111,8 +111,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("results/run"));
+    let world =
+        crate::cmd::sim_args::WorkersWorld::new(args.sim.world.as_deref(), args.sim.profile, &out)?;
     let plan = Plan {
-        world: args.sim.world.clone(),
+        world: world.path().map(PathBuf::from),
         seed: args.sim.seed,
         scenarios: vec![args.sim.scenario.clone()],
         runs: vec![PlannedRun {

@@ -16,18 +16,8 @@ pub struct WorldArgs {
     pub world: Option<PathBuf>,
     /// The sensors' models, whatever the file's `profile` says: ideal, paper, typical or field
     /// (configs/profiles/).
-    #[arg(long, value_parser = parse_profile)]
+    #[arg(long, value_parser = crate::cmd::sim_args::parse_profile)]
     pub profile: Option<Profile>,
-}
-
-fn parse_profile(name: &str) -> Result<Profile, String> {
-    Profile::ALL
-        .into_iter()
-        .find(|p| p.name() == name)
-        .ok_or_else(|| {
-            let names: Vec<&str> = Profile::ALL.iter().map(|p| p.name()).collect();
-            format!("unknown profile '{name}' (known: {})", names.join(", "))
-        })
 }
 
 pub fn run(args: &WorldArgs) -> anyhow::Result<()> {

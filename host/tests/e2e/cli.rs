@@ -280,6 +280,27 @@ fn world_prints_the_resolved_world_under_a_profile_and_the_simulator_follows_it(
             out.to_str().expect("utf-8"),
         ]);
         assert!(o.status.success(), "simulate: {}", stderr(&o));
+        // `--profile` on the simulating commands is the same world.
+        let direct = tmp.path().join(format!("{profile}-direct"));
+        let o = vinebench(&[
+            "simulate",
+            "--profile",
+            profile,
+            "--scenario",
+            "s0",
+            "--sensors",
+            "imu",
+            "--max-time",
+            "1.5",
+            "--out",
+            direct.to_str().expect("utf-8"),
+        ]);
+        assert!(o.status.success(), "simulate --profile: {}", stderr(&o));
+        assert!(
+            std::fs::read(out.join("imu.csv")).expect("imu.csv")
+                == std::fs::read(direct.join("imu.csv")).expect("imu.csv"),
+            "{profile}: --profile gives the world `world --profile` prints"
+        );
         // The still robot's vertical specific force, sample by sample: its spread.
         let az: Vec<f64> = lines(&out.join("imu.csv"))[1..]
             .iter()
@@ -305,4 +326,44 @@ fn world_prints_the_resolved_world_under_a_profile_and_the_simulator_follows_it(
         "{}",
         stderr(&o)
     );
+}
+
+/// `run --profile` (as `bench --profile`): the workers read the world resolved under that
+/// profile, which the run folder keeps, and the file written for them is gone afterwards.
+#[test]
+fn a_run_under_another_profile_keeps_its_resolved_world() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("field");
+    let o = vinebench(&[
+        "run",
+        "--scenario",
+        "s0",
+        "--plugin",
+        "wheel-odometry",
+        "--profile",
+        "field",
+        "--max-time",
+        "2",
+        "--align",
+        "origin",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "run --profile: {}", stderr(&o));
+    let world: toml::Table = std::fs::read_to_string(out.join("s0/wheel-odometry/world.toml"))
+        .expect("the run's world")
+        .parse()
+        .expect("TOML");
+    assert_eq!(world["profile"].as_str(), Some("field"));
+    assert_eq!(
+        world["sensors"]["camera"]["clock_offset_ns"].as_integer(),
+        Some(30_000_000),
+        "field's keys"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .expect("tmp")
+        .map(|e| e.expect("entry").file_name())
+        .filter(|n| n.to_string_lossy().contains(".world-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
 }
