@@ -20,7 +20,8 @@ seed() { # target, files...
 
 seed world_toml configs/world.toml configs/paper-world.toml configs/peers-paper-world.toml
 seed bench_toml configs/paper.toml configs/lio-sam.toml configs/backends.toml configs/peers.toml
-seed sweep_toml configs/paper-sweep.toml configs/sweep-demo.toml configs/fidelity-subset.toml
+seed sweep_toml configs/paper-sweep.toml configs/sweep-demo.toml configs/fidelity-subset.toml \
+    configs/study/realism/factors-paper-world.toml
 seed g2o plugins/slam-common/tests/fixtures/pose3example.txt
 # A planar TORO graph and a City10000 one (GTSAM's layouts, docs of posegraph::parse).
 cat > "$work/toro2d.graph" <<'EOF'

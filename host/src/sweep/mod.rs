@@ -760,17 +760,23 @@ mod tests {
                 .expect("name")
                 .to_string_lossy()
                 .into_owned();
-            if name.starts_with("factors-") && name.ends_with(".toml") {
+            let factors = name.starts_with("factors-");
+            if (factors || name.starts_with("cluster-")) && name.ends_with(".toml") {
                 let cfg = BenchConfig::from_file(&path).expect("sweep file");
                 assert!(cfg.variants.len() > 2, "{name}: the factors and typical");
-                assert!(
-                    cfg.variants["typical"]
-                        .as_table()
-                        .expect("table")
-                        .is_empty()
-                );
                 for (variant, sets) in &cfg.variants {
-                    for (path, value) in sets.as_table().expect("table") {
+                    let sets = sets.as_table().expect("table");
+                    // The cluster's files name the rung each variant lies over.
+                    let rung = sets.get("profile").and_then(toml::Value::as_str);
+                    match variant.as_str() {
+                        "ideal" | "paper" | "typical" | "field" => {
+                            assert_eq!(rung.unwrap_or("typical"), variant, "{name}");
+                            assert!(sets.len() <= 1, "{name}: variants.{variant} sets a factor");
+                            continue;
+                        }
+                        _ => assert_eq!(rung.unwrap_or("typical"), "typical", "{name}"),
+                    }
+                    for (path, value) in sets.iter().filter(|(p, _)| *p != "profile") {
                         let mut want = at(path);
                         // `field` keeps floats as floats; the file may write 1.0 as 1.0.
                         if let (Some(toml::Value::Float(f)), toml::Value::Integer(i)) =
@@ -786,7 +792,9 @@ mod tests {
                         );
                     }
                 }
-                files.push((name, cfg.variants));
+                if factors {
+                    files.push((name, cfg.variants));
+                }
             }
         }
         assert_eq!(files.len(), 3, "{files:?}");
