@@ -121,6 +121,11 @@ def resume_files(sweep_file, kept, write_dir):
     return written
 
 
+def fmt_paper(system):
+    """The paper's S3 figure for a system it ran, else a dash."""
+    return f"{PAPER_S3[system]:.2f}" if system in PAPER_S3 else "–"
+
+
 def summary(values):
     """`mean ± std (n)` of a list (std the sample's; a single value alone)."""
     if not values:
@@ -217,7 +222,7 @@ def tables(runs, figure):
                 bad = len(here) - len(ok)
                 cell = summary(ok) + (f" ({len(ok)} seeds)" if len(ok) > 1 else "")
                 cells.append(cell + (f", {bad} failed" if bad else "") if here else "–")
-            out.append(f"| {s} | " + " | ".join(cells) + f" | {PAPER_S3.get(s, '–')} |")
+            out.append(f"| {s} | " + " | ".join(cells) + f" | {fmt_paper(s)} |")
         out.append("")
         out.append("Drift per 100 m (translation % / rotation °), mean over seeds; false loops, "
                    "wrong joins of the final map and dropped messages, summed over seeds:\n")
