@@ -87,16 +87,19 @@ def resume_files(sweep_file, kept, write_dir):
     have = set()
     for cell_path in Path(kept).glob("*/cell.json"):
         c = json.loads(cell_path.read_text())
-        have.add((c["label"], c["scenario"], c["seed"], tuple(sorted(normal(c["point"]).items()))))
+        have.add((c["label"], bool(c.get("queue_size")), c["scenario"], c["seed"],
+                  tuple(sorted(normal(c["point"]).items()))))
     head, *blocks = re.split(r"(?m)^(?=\[\[plugins\]\])", text)
-    labels = [tomllib.loads(b)["plugins"][0].get("label") or tomllib.loads(b)["plugins"][0]["name"]
-              for b in blocks]
+    plugins = [tomllib.loads(b)["plugins"][0] for b in blocks]
+    # A run with bounded queues (transport-*.toml) is another cell than the same system's
+    # without.
+    labels = [(p.get("label") or p["name"], "queue_size" in p) for p in plugins]
     written = []
     for i, point in enumerate(points_of(cfg)):
         key = tuple(sorted(normal(point).items()))
         for seed in cfg.get("seeds", [cfg.get("seed", 0)]):
-            missing = [b for b, label in zip(blocks, labels)
-                       if not all((label, s, seed, key) in have for s in cfg["scenarios"])]
+            missing = [b for b, (label, queued) in zip(blocks, labels)
+                       if not all((label, queued, s, seed, key) in have for s in cfg["scenarios"])]
             if not missing:
                 continue
             narrowed = re.sub(r"(?m)^seeds = .*$", f"seeds = [{seed}]", head)
@@ -141,6 +144,9 @@ def row_of(run):
     p = normal(c["point"])
     rung = json.loads(p.get("profile", '"?"'))
     variant = json.loads(p["variant"]) if "variant" in p else None
+    # transport-*.toml: paced with the system's own bounded subscriber queues.
+    if c.get("queue_size"):
+        variant = "transport"
     ok = c["status"] == "ok" and m is not None
     joins = (m or {}).get("joins") or {}
     drift = (m or {}).get("drift") or {}

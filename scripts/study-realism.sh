@@ -18,7 +18,7 @@ results=results/realism
 kept=docs/realism/runs
 vb=target/release/vinebench
 all=(ladder-paper-world factors-paper-world ladder-paper-world-camera factors-paper-world-camera
-     ladder-paper-world-orbslam3 factors-paper-world-orbslam3)
+     ladder-paper-world-orbslam3 factors-paper-world-orbslam3 transport-paper-world)
 
 save() {
     for dir in "$results"/*/runs/*/; do
