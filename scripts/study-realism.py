@@ -165,12 +165,13 @@ def row_of(run):
 def svg_ladder(rows, systems, path):
     """ATE RMSE (log scale) of each system on each rung, mean and the seeds' range."""
     w, h, left, right, top, bottom = 720, 420, 70, 190, 20, 50
-    vals = [r["ate"] for r in rows if r["ate"]]
+    vals = [r["ate"] for r in rows if r["ate"]] + [PAPER_S3[s] for s in systems if s in PAPER_S3]
     if not vals:
         return
     lo = 10 ** math.floor(math.log10(min(vals)))
     hi = 10 ** math.ceil(math.log10(max(vals)))
-    x = lambda i: left + (i + 0.5) * (w - left - right) / len(RUNGS)
+    columns = RUNGS + ["Hroob et al. S3"]
+    x = lambda i: left + (i + 0.5) * (w - left - right) / len(columns)
     y = lambda v: top + (math.log10(hi) - math.log10(v)) / (math.log10(hi) - math.log10(lo)) * (h - top - bottom)
     colours = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d",
                "#666666", "#1f78b4"]
@@ -182,7 +183,7 @@ def svg_ladder(rows, systems, path):
         out.append(f'<line x1="{left}" x2="{w - right}" y1="{y(d):.1f}" y2="{y(d):.1f}" stroke="#ddd"/>')
         out.append(f'<text x="{left - 6}" y="{y(d) + 4:.1f}" text-anchor="end">{d:g}</text>')
         d *= 10
-    for i, rung in enumerate(RUNGS):
+    for i, rung in enumerate(columns):
         out.append(f'<text x="{x(i):.1f}" y="{h - bottom + 18}" text-anchor="middle">{rung}</text>')
     out.append(f'<text x="14" y="{(h - bottom + top) / 2:.0f}" transform="rotate(-90 14 '
                f'{(h - bottom + top) / 2:.0f})" text-anchor="middle">ATE RMSE (m), S3</text>')
@@ -199,6 +200,10 @@ def svg_ladder(rows, systems, path):
             out.append(f'<line x1="{x(i) + dx:.1f}" x2="{x(i) + dx:.1f}" y1="{y(min(v)):.1f}" '
                        f'y2="{y(max(v)):.1f}" stroke="{colour}"/>')
             out.append(f'<circle cx="{x(i) + dx:.1f}" cy="{y(m):.1f}" r="3.5" fill="{colour}"/>')
+        if system in PAPER_S3:
+            # The paper's own figure, as context: a hollow marker.
+            out.append(f'<circle cx="{x(len(RUNGS)) + dx:.1f}" cy="{y(PAPER_S3[system]):.1f}" '
+                       f'r="3.5" fill="none" stroke="{colour}" stroke-width="1.5"/>')
         if len(line) > 1:
             out.append(f'<polyline points="{" ".join(line)}" fill="none" stroke="{colour}" '
                        f'stroke-width="1.5"/>')
