@@ -16,7 +16,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 results=results/realism
 kept=docs/realism/runs
-vb=target/release/vinebench
+# VINEBENCH: another build's vinebench (its plugins beside it), used as it is, not rebuilt.
+vb=${VINEBENCH:-target/release/vinebench}
 all=(ladder-paper-world factors-paper-world ladder-paper-world-camera factors-paper-world-camera
      ladder-paper-world-orbslam3 factors-paper-world-orbslam3 transport-paper-world)
 
@@ -45,8 +46,8 @@ case "${1:-}" in
 esac
 
 source scripts/setup.sh
-cargo build --release
-[ -f target/orbslam3-vocabulary.txt ] || target/release/orbslam2-vocabulary \
+[ -n "${VINEBENCH:-}" ] || cargo build --release
+[ -f target/orbslam3-vocabulary.txt ] || "$(dirname "$vb")/orbslam2-vocabulary" \
     --export-dbow2-text plugins/orbslam2/vocabulary/vineyard-k10l6.dbow target/orbslam3-vocabulary.txt
 
 sweeps=("$@")
