@@ -15,6 +15,8 @@ import math
 import statistics
 from pathlib import Path
 
+from studylib import toml_text
+
 Z = 1.959963984540054
 
 
@@ -39,17 +41,6 @@ def cell_of(sweep, cell):
     variation = float(point.get("vineyard.plant_variation", "0.0"))
     system = "orbslam2" if sweep.startswith("orbslam2") else "ORB-SLAM3"
     return (cell["scenario"].upper(), fence, variation, system)
-
-
-def toml_text(v):
-    """A TOML value as the sweep prints it in a run's `point` (and as TOML reads it back)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_text(x) for x in v) + "]"
-    if isinstance(v, str):
-        return json.dumps(v)
-    return repr(v)
 
 
 def points_of(cfg):

@@ -26,20 +26,11 @@ import statistics
 import tomllib
 from pathlib import Path
 
+from studylib import toml_text
+
 RUNGS = ["ideal", "paper", "typical", "field"]
 # Published S3 figures as context, not as a target: Hroob et al. 2021, Table 2 (ATE, m).
 PAPER_S3 = {"lio-sam": 0.40, "staticmapping": 1.51, "orbslam2": 5.22, "rtabmap": 0.07}
-
-
-def toml_text(v):
-    """A TOML value as the sweep prints it in a run's `point`."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_text(x) for x in v) + "]"
-    if isinstance(v, str):
-        return json.dumps(v)
-    return repr(v)
 
 
 def normal(point):
