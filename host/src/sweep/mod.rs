@@ -764,7 +764,10 @@ mod tests {
             let factors = name.starts_with("factors-");
             if (factors || name.starts_with("cluster-")) && name.ends_with(".toml") {
                 let cfg = BenchConfig::from_file(&path).expect("sweep file");
-                assert!(cfg.variants.len() >= 2, "{name}: typical and a factor at least");
+                assert!(
+                    cfg.variants.len() >= 2,
+                    "{name}: typical and a factor at least"
+                );
                 for (variant, sets) in &cfg.variants {
                     let sets = sets.as_table().expect("table");
                     // The cluster's files name the rung each variant lies over.
