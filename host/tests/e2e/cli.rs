@@ -265,37 +265,32 @@ fn world_prints_the_resolved_world_under_a_profile_and_the_simulator_follows_it(
         assert_eq!(table["profile"].as_str(), Some(profile), "{text}");
         let world = tmp.path().join(format!("{profile}.toml"));
         std::fs::write(&world, &text).expect("write");
+        // The still robot's IMU for 1.5 s, in that world given by file or by `--profile`.
+        let simulate = |world_args: &[&str], out: &Path| {
+            let mut args = vec!["simulate"];
+            args.extend_from_slice(world_args);
+            args.extend([
+                "--scenario",
+                "s0",
+                "--sensors",
+                "imu",
+                "--max-time",
+                "1.5",
+                "--out",
+            ]);
+            args.push(out.to_str().expect("utf-8"));
+            let o = vinebench(&args);
+            assert!(
+                o.status.success(),
+                "simulate {world_args:?}: {}",
+                stderr(&o)
+            );
+        };
         let out = tmp.path().join(profile);
-        let o = vinebench(&[
-            "simulate",
-            "--world",
-            world.to_str().expect("utf-8"),
-            "--scenario",
-            "s0",
-            "--sensors",
-            "imu",
-            "--max-time",
-            "1.5",
-            "--out",
-            out.to_str().expect("utf-8"),
-        ]);
-        assert!(o.status.success(), "simulate: {}", stderr(&o));
+        simulate(&["--world", world.to_str().expect("utf-8")], &out);
         // `--profile` on the simulating commands is the same world.
         let direct = tmp.path().join(format!("{profile}-direct"));
-        let o = vinebench(&[
-            "simulate",
-            "--profile",
-            profile,
-            "--scenario",
-            "s0",
-            "--sensors",
-            "imu",
-            "--max-time",
-            "1.5",
-            "--out",
-            direct.to_str().expect("utf-8"),
-        ]);
-        assert!(o.status.success(), "simulate --profile: {}", stderr(&o));
+        simulate(&["--profile", profile], &direct);
         assert!(
             std::fs::read(out.join("imu.csv")).expect("imu.csv")
                 == std::fs::read(direct.join("imu.csv")).expect("imu.csv"),
