@@ -329,7 +329,8 @@ fn world_prints_the_resolved_world_under_a_profile_and_the_simulator_follows_it(
 fn a_run_under_another_profile_keeps_its_resolved_world() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let out = tmp.path().join("field");
-    let o = vinebench(&[
+    // The plugin is found on the test build's search path (the helper sets it).
+    let o = crate::common::vinebench(&[
         "run",
         "--scenario",
         "s0",
