@@ -17,7 +17,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 results=results/rates
 kept=docs/hroob/rates/runs
-vb=target/release/vinebench
+# VINEBENCH: another build's vinebench (its plugins and orbslam2-vocabulary beside it), used
+# as it is, not rebuilt: a study left running keeps its binary while the tree is rebuilt.
+vb=${VINEBENCH:-target/release/vinebench}
 all=(orbslam2-s3 orbslam2-s3-decide orbslam2-s3-nofence orbslam2-s3-nofence-decide orbslam2-s1
      orbslam3-s3 orbslam3-s3-decide orbslam3-s3-nofence orbslam3-s3-nofence-decide orbslam3-s1)
 
@@ -52,8 +54,8 @@ case "${1:-}" in
 esac
 
 source scripts/setup.sh
-cargo build --release
-[ -f target/orbslam3-vocabulary.txt ] || target/release/orbslam2-vocabulary \
+[ -n "${VINEBENCH:-}" ] || cargo build --release
+[ -f target/orbslam3-vocabulary.txt ] || "$(dirname "$vb")/orbslam2-vocabulary" \
     --export-dbow2-text plugins/orbslam2/vocabulary/vineyard-k10l6.dbow target/orbslam3-vocabulary.txt
 
 sweeps=("$@")
