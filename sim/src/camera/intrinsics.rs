@@ -25,15 +25,27 @@ impl Intrinsics {
 
     /// The configured image with a horizontal field of view of `hfov_deg`.
     pub fn with_hfov(cfg: &CameraConfig, hfov_deg: f64) -> Self {
-        let fx = 0.5 * cfg.width as f64 / (0.5 * hfov_deg.to_radians()).tan();
+        Self::pinhole(cfg.width, cfg.height, hfov_deg)
+    }
+
+    /// A `width` x `height` image with a horizontal field of view of `hfov_deg`, square
+    /// pixels, principal point at the centre.
+    pub fn pinhole(width: usize, height: usize, hfov_deg: f64) -> Self {
+        let fx = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
         Self {
-            width: cfg.width,
-            height: cfg.height,
+            width,
+            height,
             fx,
             fy: fx,
-            cx: 0.5 * (cfg.width as f64 - 1.0),
-            cy: 0.5 * (cfg.height as f64 - 1.0),
+            cx: 0.5 * (width as f64 - 1.0),
+            cy: 0.5 * (height as f64 - 1.0),
         }
+    }
+
+    /// The separate depth camera's (`depth_hfov_deg`; `depth_size`, else the colour image's).
+    pub fn depth_camera(cfg: &CameraConfig) -> Option<Self> {
+        let [w, h] = cfg.depth_size.unwrap_or([cfg.width, cfg.height]);
+        cfg.depth_hfov_deg.map(|hfov| Self::pinhole(w, h, hfov))
     }
 
     /// The ray through pixel `(u, v)` in the optical frame, scaled to z = 1: a point at

@@ -161,7 +161,7 @@ impl RgbdCamera {
         Self {
             cfg: cfg.clone(),
             intrinsics: Intrinsics::from_config(cfg),
-            depth_intrinsics: cfg.depth_hfov_deg.map(|h| Intrinsics::with_hfov(cfg, h)),
+            depth_intrinsics: Intrinsics::depth_camera(cfg),
             base_from_camera_optical: cfg.mount.base_from_sensor() * camera_from_optical(),
             chunks,
             light,
@@ -225,25 +225,59 @@ impl RgbdCamera {
         };
         let (rgb, mut depth, mut cos_incidence) =
             self.pass(&world_from_optical, &self.intrinsics, &colour, &effects);
-        if let Some(k) = &self.depth_intrinsics {
+        let k = self.intrinsics;
+        let image = |depth_m| RgbdImage {
+            width: w,
+            height: h,
+            rgb,
+            depth_m,
+            intrinsics: [k.fx, k.fy, k.cx, k.cy],
+        };
+        if let Some(kd) = &self.depth_intrinsics {
+            // The depth camera's own pass. With one sample a pixel's depth is its centre's
+            // surface, so one wholly beyond the range (and beyond what edge dropout compares
+            // a neighbour with) would only ever give 0: it is not rasterized.
+            let depth_pass = Pass {
+                pattern: self.depth_pattern,
+                far: None,
+                cull_beyond: (self.depth_pattern.len() == 1)
+                    .then(|| effects.max_depth_m * (1.0 + effects.edge_dropout_ratio.max(0.0))),
+                colour: false,
+            };
             match self.cfg.depth_registration {
+                DepthRegistration::Registered if self.depth_apart() => {
+                    // A camera of its own (the Kinect v2's: its own centre and image): the
+                    // sensor's effects act on its own image, which is then registered
+                    // into the colour camera, as a driver does.
+                    let [ox, oy, oz] = self.cfg.depth_offset_m;
+                    let world_from_depth_optical =
+                        world_from_optical * nalgebra::Translation3::new(ox, oy, oz);
+                    let (_, d, c) = self.pass(&world_from_depth_optical, kd, &depth_pass, &effects);
+                    let own = depth_noise::Effects {
+                        width: kd.width,
+                        ..effects
+                    };
+                    let mut native = vec![0.0f32; kd.width * kd.height];
+                    native
+                        .par_chunks_mut(kd.width * BAND_ROWS)
+                        .enumerate()
+                        .for_each(|(band, out)| {
+                            own.depth_band(band * BAND_ROWS * kd.width, &d, &c, out);
+                        });
+                    return image(register_depth(
+                        &native,
+                        kd,
+                        self.cfg.depth_offset_m,
+                        &self.intrinsics,
+                    ));
+                }
                 DepthRegistration::Stretched => {
                     // The depth camera's own image, handed over pixel for pixel.
-                    // With one sample a pixel's depth is its centre's surface, so one wholly
-                    // beyond the range (and beyond what edge dropout compares a neighbour
-                    // with) would only ever give 0: it is not rasterized.
-                    let cull_beyond = (self.depth_pattern.len() == 1)
-                        .then(|| effects.max_depth_m * (1.0 + effects.edge_dropout_ratio.max(0.0)));
-                    let depth_pass = Pass {
-                        pattern: self.depth_pattern,
-                        far: None,
-                        cull_beyond,
-                        colour: false,
-                    };
-                    let (_, d, c) = self.pass(&world_from_optical, k, &depth_pass, &effects);
+                    let (_, d, c) = self.pass(&world_from_optical, kd, &depth_pass, &effects);
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
+                    let k = kd;
                     // The same centre: registration keeps the rays the depth camera sees,
                     // the columns and rows within its view (row by row: no division per pixel).
                     let c = self.intrinsics;
@@ -277,15 +311,16 @@ impl RgbdCamera {
             .for_each(|(band, out)| {
                 effects.depth_band(band * BAND_ROWS * w, &depth, &cos_incidence, out);
             });
+        image(depth_m)
+    }
 
-        let k = self.intrinsics;
-        RgbdImage {
-            width: w,
-            height: h,
-            rgb,
-            depth_m,
-            intrinsics: [k.fx, k.fy, k.cx, k.cy],
-        }
+    /// A depth camera with a centre or an image of its own (`depth_offset_m`,
+    /// `depth_size`): its depth is reprojected, not merely cut to its view.
+    fn depth_apart(&self) -> bool {
+        self.depth_intrinsics.is_some_and(|kd| {
+            self.cfg.depth_offset_m != [0.0; 3]
+                || (kd.width, kd.height) != (self.intrinsics.width, self.intrinsics.height)
+        })
     }
 
     /// Steps 1-3 through intrinsics `k` (the configured image size): colour with its noise
@@ -470,11 +505,186 @@ impl RgbdCamera {
     }
 }
 
+/// Registers the depth image `depth` of camera `from`, whose optical centre sits at
+/// `offset` (metres) in the optical frame of camera `to` with its axes parallel, into
+/// `to`'s image: each valid pixel (its surface's point, and its footprint: the pixel's four
+/// corners at its depth) covers the `to` pixels whose centres fall inside the footprint's
+/// projection, the nearest surface winning; a `to` pixel that no footprint covers has no
+/// depth (0). What `to` sees past an edge that `from`, from its other viewpoint, does not
+/// is left empty, as a Kinect v2 driver's registration leaves it (the shadows of its
+/// colour-depth parallax); nothing is interpolated across an edge. The output is depth
+/// along `to`'s optical axis.
+pub fn register_depth(
+    depth: &[f32],
+    from: &Intrinsics,
+    offset: [f64; 3],
+    to: &Intrinsics,
+) -> Vec<f32> {
+    let (tw, th) = (to.width as i64, to.height as i64);
+    let mut out = vec![f32::INFINITY; to.width * to.height];
+    for (v, row) in depth.chunks_exact(from.width).enumerate() {
+        let (y0, y1) = (
+            (v as f64 - 0.5 - from.cy) / from.fy,
+            (v as f64 + 0.5 - from.cy) / from.fy,
+        );
+        for (u, &z) in row.iter().enumerate() {
+            if z <= 0.0 {
+                continue;
+            }
+            let z = f64::from(z);
+            let zt = z + offset[2];
+            if zt <= 0.0 {
+                continue;
+            }
+            let x0 = (u as f64 - 0.5 - from.cx) / from.fx;
+            let x1 = (u as f64 + 0.5 - from.cx) / from.fx;
+            // The footprint's corners in `to`'s pixels; a pixel is covered where its centre
+            // lies in [a0, a1) x [b0, b1).
+            let a0 = to.fx * (z * x0 + offset[0]) / zt + to.cx;
+            let a1 = to.fx * (z * x1 + offset[0]) / zt + to.cx;
+            let b0 = to.fy * (z * y0 + offset[1]) / zt + to.cy;
+            let b1 = to.fy * (z * y1 + offset[1]) / zt + to.cy;
+            let (ua, ub) = ((a0.ceil() as i64).max(0), (a1.ceil() as i64).min(tw));
+            let (va, vb) = ((b0.ceil() as i64).max(0), (b1.ceil() as i64).min(th));
+            let zt = zt as f32;
+            for vt in va..vb {
+                let row = &mut out[(vt * tw) as usize..][..to.width];
+                for o in &mut row[ua as usize..ub.max(ua) as usize] {
+                    if zt < *o {
+                        *o = zt;
+                    }
+                }
+            }
+        }
+    }
+    for z in &mut out {
+        if z.is_infinite() {
+            *z = 0.0;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::config::SimConfig;
     use crate::simulation::Simulation;
+
+    /// The depth camera's image of a post 0.1 m wide 1 m ahead of a wall 4 m ahead, both
+    /// traced exactly from its own centre (0.0517 m to the colour camera's left, the
+    /// Kinect v2's), registered into the colour camera: the post and the wall keep their
+    /// depths, and beside the post's right edge the colour camera sees wall that the depth
+    /// camera cannot: a band without depth as wide as the parallax, fx · b · (1/z₁ − 1/z₂)
+    /// = 17.7 px. Nowhere else in the depth camera's view is a pixel left empty.
+    #[test]
+    fn registration_leaves_the_parallax_shadow_beside_an_edge_and_nothing_else() {
+        let colour = Intrinsics::pinhole(640, 480, 70.0);
+        let depth = Intrinsics::pinhole(512, 424, 70.1);
+        let (b, z_post, z_wall, half) = (0.0517, 1.0, 4.0, 0.05);
+        let offset = [-b, 0.0, 0.0];
+        // The depth camera's image: each pixel's central ray from its own centre.
+        let mut img = vec![0.0f32; depth.width * depth.height];
+        for v in 0..depth.height {
+            for u in 0..depth.width {
+                let [xr, _, _] = depth.ray(u as f64, v as f64);
+                // Where the ray crosses z = z_post, in the colour camera's frame.
+                let x_at_post = offset[0] + z_post * xr;
+                img[v * depth.width + u] = if x_at_post.abs() <= half {
+                    z_post as f32
+                } else {
+                    z_wall as f32
+                };
+            }
+        }
+        let out = register_depth(&img, &depth, offset, &colour);
+        let (w, h) = (colour.width, colour.height);
+        let row = &out[(h / 2) * w..][..w];
+        let margin = 12; // the two cameras' views differ by a few columns at the borders
+        let col = |x_over_z: f64| colour.fx * x_over_z + colour.cx;
+        let (post_l, post_r) = (col(-half / z_post), col(half / z_post));
+        let mut holes = Vec::new();
+        for (u, &z) in row.iter().enumerate().take(w - margin).skip(margin) {
+            let u_f = u as f64;
+            if z == 0.0 {
+                holes.push(u);
+            } else if u_f > post_l + 1.0 && u_f < post_r - 1.0 {
+                assert_eq!(z, z_post as f32, "the post at column {u}");
+            } else if u_f < post_l - 1.0 || u_f > post_r + 20.0 {
+                assert_eq!(z, z_wall as f32, "the wall at column {u}");
+            }
+        }
+        let expected = colour.fx * b * (1.0 / z_post - 1.0 / z_wall);
+        assert!(
+            (holes.len() as f64 - expected).abs() <= 1.5,
+            "a shadow of {} px (columns {holes:?}), the parallax gives {expected:.1} px",
+            holes.len()
+        );
+        assert!(
+            holes.iter().all(|&u| (u as f64) > post_r - 1.0),
+            "the shadow lies right of the post (right edge at {post_r:.1}): {holes:?}"
+        );
+        // Every row alike: no pixel empty away from the post's right edge.
+        let stray = (margin..h - margin)
+            .flat_map(|v| (margin..w - margin).map(move |u| (u, v)))
+            .filter(|&(u, v)| out[v * w + u] == 0.0)
+            .filter(|&(u, _)| !(post_r - 1.0..post_r + expected + 2.0).contains(&(u as f64)))
+            .count();
+        assert_eq!(stray, 0, "empty pixels away from the edge");
+
+        // The same camera at the same centre gives back its image, bit for bit.
+        let same = register_depth(&img, &depth, [0.0; 3], &depth);
+        assert!(
+            same.iter()
+                .zip(&img)
+                .all(|(p, q)| p.to_bits() == q.to_bits())
+        );
+    }
+
+    /// A Kinect v2 as `field` has it (its depth camera's own 512 x 424 image, 51.7 mm
+    /// beside the colour camera) renders S3's frames with about as much depth as the same
+    /// depth camera at the colour camera's centre, less its parallax shadows, and the same
+    /// colour; the frame is the same for the same seed.
+    #[test]
+    fn a_depth_camera_apart_renders_registered_frames() {
+        let cfg = SimConfig::default();
+        let sim = Simulation::new(&cfg, "s3", 7).expect("s3");
+        let world = World::from_config(&cfg);
+        let same_centre = CameraConfig {
+            depth_hfov_deg: Some(70.1),
+            depth_registration: DepthRegistration::Registered,
+            ..cfg.sensors.camera.clone()
+        };
+        let apart = CameraConfig {
+            depth_size: Some([512, 424]),
+            depth_offset_m: [-0.0517, 0.0, 0.0],
+            ..same_centre.clone()
+        };
+        let (a, b) = (
+            RgbdCamera::new(&apart, &world),
+            RgbdCamera::new(&same_centre, &world),
+        );
+        assert!(a.depth_apart() && !b.depth_apart());
+        let pose = sim.trajectory.pose(45_000_000_000);
+        let render = |cam: &RgbdCamera| cam.render(&pose, &mut crate::rng::stream(3, "frame"));
+        let (fa, fb) = (render(&a), render(&b));
+        assert_eq!(fa.rgb, fb.rgb, "the colour image does not change");
+        assert_eq!(fa.depth_m.len(), fb.depth_m.len());
+        let valid = |f: &RgbdImage| f.depth_m.iter().filter(|&&z| z > 0.0).count() as f64;
+        let (va, vb) = (valid(&fa), valid(&fb));
+        assert!(
+            vb > 100_000.0 && va > 0.85 * vb && va < 1.02 * vb,
+            "valid depth pixels: apart {va}, same centre {vb}"
+        );
+        let again = render(&a);
+        assert!(
+            again
+                .depth_m
+                .iter()
+                .zip(&fa.depth_m)
+                .all(|(p, q)| p.to_bits() == q.to_bits())
+        );
+    }
 
     /// Leaving out what lies wholly beyond a pass's reach changes no byte of any frame: the
     /// colour pass clipped at its far plane (4 samples a pixel), and a separate depth

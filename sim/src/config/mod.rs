@@ -246,6 +246,38 @@ impl SimConfig {
         if let Some(h) = c.depth_hfov_deg {
             in_range("sensors.camera.depth_hfov_deg", h, 1.0, 170.0)?;
         }
+        let apart = c.depth_offset_m != [0.0; 3];
+        if let Some([w, h]) = c.depth_size
+            && (w < 2 || h < 2)
+        {
+            return Err(format!(
+                "sensors.camera.depth_size = [{w}, {h}]: width and height must be at least 2"
+            ));
+        }
+        for (k, v) in c.depth_offset_m.iter().enumerate() {
+            in_range(
+                &format!("sensors.camera.depth_offset_m[{k}]"),
+                *v,
+                -0.5,
+                0.5,
+            )?;
+        }
+        if (apart || c.depth_size.is_some()) && c.depth_hfov_deg.is_none() {
+            return Err(
+                "sensors.camera: depth_size and depth_offset_m describe a separate depth camera: \
+                 set depth_hfov_deg too"
+                    .into(),
+            );
+        }
+        if (apart || c.depth_size.is_some_and(|s| s != [c.width, c.height]))
+            && c.depth_registration != DepthRegistration::Registered
+        {
+            return Err(
+                "sensors.camera: a depth camera of another size or centre than the colour \
+                 camera's needs depth_registration = \"registered\""
+                    .into(),
+            );
+        }
         if let Some(f) = c.colour_far_clip_m {
             positive("sensors.camera.colour_far_clip_m", f)?;
         }
@@ -702,6 +734,31 @@ mod tests {
             e.to_string().contains("vineyard.plant_variation = 1.5"),
             "{e}"
         );
+    }
+
+    /// A depth camera of its own is described whole, and only registration can pair it.
+    #[test]
+    fn a_depth_camera_apart_needs_its_view_and_registration() {
+        for (text, says) in [
+            (
+                "[sensors.camera]\ndepth_offset_m = [-0.05, 0.0, 0.0]\n",
+                "set depth_hfov_deg too",
+            ),
+            (
+                "[sensors.camera]\ndepth_hfov_deg = 70.1\ndepth_size = [512, 424]\n",
+                "needs depth_registration = \"registered\"",
+            ),
+            (
+                "[sensors.camera]\ndepth_hfov_deg = 70.1\ndepth_offset_m = [0.9, 0.0, 0.0]\n\
+                 depth_registration = \"registered\"\n",
+                "sensors.camera.depth_offset_m[0] = 0.9",
+            ),
+        ] {
+            let e = SimConfig::from_toml_str(text, "w.toml").expect_err(says);
+            assert!(e.to_string().contains(says), "{e}");
+        }
+        let field = SimConfig::from_toml_str("profile = \"field\"\n", "w.toml").expect("field");
+        assert_eq!(field.sensors.camera.depth_size, Some([512, 424]));
     }
 
     #[test]

@@ -272,6 +272,16 @@ pub struct CameraConfig {
     /// beside an 84.1° `camera` sensor, both on `kinect2_link`, `sensor_kinect_v2.xacro`
     /// in LCAS/bacchus_lcas, branch `liosam`), delivered as `depth_registration` says.
     pub depth_hfov_deg: Option<f64>,
+    /// With `depth_hfov_deg`: the depth camera's own image, `[width, height]` (square
+    /// pixels; its vertical field of view follows). `None`: the colour image's size.
+    /// Another size needs `depth_registration = "registered"`.
+    pub depth_size: Option<[usize; 2]>,
+    /// With `depth_hfov_deg`: the depth camera's optical centre in the colour camera's
+    /// optical frame (x right, y down, z forward; axes parallel), metres. `[0, 0, 0]`: the
+    /// same centre. Non-zero needs `depth_registration = "registered"`: each depth pixel is
+    /// then reprojected into the colour image, and what the colour camera sees but the depth
+    /// camera does not (behind an edge, from its other viewpoint) has no depth (0).
+    pub depth_offset_m: [f64; 3],
     /// With `depth_hfov_deg`: `stretched` delivers the depth image pixel for pixel as the
     /// colour image's, under the colour intrinsics, as the paper's systems read it
     /// (`rgbd_sync` pairs the two topics by time, nothing registers them); `registered`
@@ -354,6 +364,8 @@ impl Default for CameraConfig {
             depth_antialias_samples: 1,
             filter_materials: true,
             depth_hfov_deg: None,
+            depth_size: None,
+            depth_offset_m: [0.0; 3],
             depth_registration: DepthRegistration::Stretched,
             colour_far_clip_m: None,
             clock_offset_ns: 0,
