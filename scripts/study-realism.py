@@ -213,16 +213,20 @@ def tables(runs, figure):
         ladder = [r for r in wrows if r["variant"] is None]
         systems = sorted({r["system"] for r in wrows})
         out.append(f"## {world}: the ladder (S3, mean ± sample std over seeds)\n")
-        out.append("ATE RMSE (m); runs that did not end ok are counted apart.\n")
+        out.append("ATE RMSE (m), in brackets each seed's (seeds in order); runs that did not "
+                   "end ok are counted apart.\n")
         out.append("| system | " + " | ".join(RUNGS) + " | Hroob et al. Table 2, S3 |")
         out.append("|---|" + "---:|" * (len(RUNGS) + 1))
         for s in systems:
             cells = []
             for rung in RUNGS:
                 here = [r for r in ladder if r["system"] == s and r["rung"] == rung]
-                ok = [r["ate"] for r in here if r["ok"]]
+                ok = [r["ate"] for r in sorted(here, key=lambda r: r["seed"]) if r["ok"]]
                 bad = len(here) - len(ok)
-                cell = summary(ok) + (f" ({len(ok)} seeds)" if len(ok) > 1 else "")
+                # Each seed's figure beside the mean: one diverged seed makes a mean and std
+                # that describe no run.
+                each = ", ".join(f"{a:.3f}" for a in ok)
+                cell = summary(ok) + (f" ({each})" if len(ok) > 1 else "")
                 cells.append(cell + (f", {bad} failed" if bad else "") if here else "–")
             out.append(f"| {s} | " + " | ".join(cells) + f" | {fmt_paper(s)} |")
         out.append("")
@@ -245,13 +249,14 @@ def tables(runs, figure):
                 cells.append(f"{pct:.2f} % / {deg:.1f}°; {fl} false, {wj} wrong, {dr} dropped")
             out.append(f"| {s} | " + " | ".join(cells) + " |")
         out.append("")
-        out.append("The systems ranked by mean ATE RMSE on each rung (best first):\n")
+        out.append("The systems ranked by median ATE RMSE over the seeds on each rung (best "
+                   "first; the median, so that one diverged seed does not decide the order):\n")
         for rung in RUNGS:
             means = []
             for s in systems:
                 ok = [r["ate"] for r in ladder if r["system"] == s and r["rung"] == rung and r["ok"]]
                 if ok:
-                    means.append((statistics.mean(ok), s))
+                    means.append((statistics.median(ok), s))
             if means:
                 out.append(f"- `{rung}`: " + ", ".join(s for _, s in sorted(means)))
         out.append("")
