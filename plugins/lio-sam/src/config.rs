@@ -28,6 +28,8 @@ pub struct Config {
     pub features: FeatureConfig,
     pub mapping: MappingConfig,
     pub loop_closure: LoopConfig,
+    /// The factor-graph backend of both graphs, the mapping graph and the IMU odometry's,
+    /// with LIO-SAM's iSAM2 settings by default.
     pub backend: BackendConfig,
     /// Optional: a CSV file to write every graph update's size and time to
     /// (`poses,full,seconds`), to check that the per-keyframe cost stays flat; a relative
@@ -54,7 +56,14 @@ impl Default for Config {
             features: FeatureConfig::default(),
             mapping: MappingConfig::default(),
             loop_closure: LoopConfig::default(),
-            backend: BackendConfig::default(),
+            // LIO-SAM's ISAM2Params, in both its graphs (`mapOptmization.cpp` and
+            // `imuPreintegration.cpp`): relinearizeThreshold 0.1, relinearizeSkip 1 (GTSAM's
+            // default, and ours, looks for variables to relinearise every 10th update).
+            backend: BackendConfig {
+                relinearize_threshold: 0.1,
+                relinearize_skip: 1,
+                ..BackendConfig::default()
+            },
             profile_csv: None,
             trace_csv: None,
         }

@@ -228,7 +228,8 @@ mod tests {
     }
 
     fn odometry() -> ImuOdometry {
-        ImuOdometry::new(&BackendConfig::default(), ImuNoise::default()).expect("backend")
+        ImuOdometry::new(&crate::config::Config::default().backend, ImuNoise::default())
+            .expect("backend")
     }
 
     #[test]
