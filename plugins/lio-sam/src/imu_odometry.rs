@@ -228,8 +228,11 @@ mod tests {
     }
 
     fn odometry() -> ImuOdometry {
-        ImuOdometry::new(&crate::config::Config::default().backend, ImuNoise::default())
-            .expect("backend")
+        ImuOdometry::new(
+            &crate::config::Config::default().backend,
+            ImuNoise::default(),
+        )
+        .expect("backend")
     }
 
     #[test]
