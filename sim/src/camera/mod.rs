@@ -277,13 +277,12 @@ impl RgbdCamera {
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
-                    let k = kd;
                     // The same centre: registration keeps the rays the depth camera sees,
                     // the columns and rows within its view (row by row: no division per pixel).
                     let c = self.intrinsics;
                     let (tx, ty) = (
-                        (0.5 * k.width as f64) / k.fx,
-                        (0.5 * k.height as f64) / k.fy,
+                        (0.5 * kd.width as f64) / kd.fx,
+                        (0.5 * kd.height as f64) / kd.fy,
                     );
                     let seen_u: Vec<bool> = (0..w)
                         .map(|u| ((u as f64 - c.cx) / c.fx).abs() <= tx)
@@ -571,6 +570,11 @@ mod tests {
     use crate::config::SimConfig;
     use crate::simulation::Simulation;
 
+    /// Two depth images equal bit for bit.
+    fn same_bits(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits())
+    }
+
     /// The depth camera's image of a post 0.1 m wide 1 m ahead of a wall 4 m ahead, both
     /// traced exactly from its own centre (0.0517 m to the colour camera's left, the
     /// Kinect v2's), registered into the colour camera: the post and the wall keep their
@@ -634,11 +638,7 @@ mod tests {
 
         // The same camera at the same centre gives back its image, bit for bit.
         let same = register_depth(&img, &depth, [0.0; 3], &depth);
-        assert!(
-            same.iter()
-                .zip(&img)
-                .all(|(p, q)| p.to_bits() == q.to_bits())
-        );
+        assert!(same_bits(&same, &img));
     }
 
     /// A Kinect v2 as `field` has it (its depth camera's own 512 x 424 image, 51.7 mm
@@ -677,13 +677,7 @@ mod tests {
             "valid depth pixels: apart {va}, same centre {vb}"
         );
         let again = render(&a);
-        assert!(
-            again
-                .depth_m
-                .iter()
-                .zip(&fa.depth_m)
-                .all(|(p, q)| p.to_bits() == q.to_bits())
-        );
+        assert!(same_bits(&again.depth_m, &fa.depth_m));
     }
 
     /// Leaving out what lies wholly beyond a pass's reach changes no byte of any frame: the
@@ -716,13 +710,7 @@ mod tests {
             let a = culled.render(&pose, &mut crate::rng::stream(seed, "frame"));
             let b = whole.render(&pose, &mut crate::rng::stream(seed, "frame"));
             assert_eq!(a.rgb, b.rgb, "colour at {t_s} s");
-            assert!(
-                a.depth_m
-                    .iter()
-                    .zip(&b.depth_m)
-                    .all(|(p, q)| p.to_bits() == q.to_bits()),
-                "depth at {t_s} s"
-            );
+            assert!(same_bits(&a.depth_m, &b.depth_m), "depth at {t_s} s");
             frames += 1;
             valid += a.depth_m.iter().filter(|&&z| z > 0.0).count();
         }
