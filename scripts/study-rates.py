@@ -29,6 +29,60 @@ def wilson(k, n):
     return (0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half))
 
 
+def fisher_two_sided(k1, n1, k2, n2):
+    """Fisher's exact test of k1 of n1 against k2 of n2 (Fisher 1935): the probability,
+    under the hypergeometric law with both margins fixed, of every table no likelier than the
+    observed one (the usual two-sided rule, with a relative tolerance for ties)."""
+    k, n = k1 + k2, n1 + n2
+    total = math.comb(n, k)
+
+    def p(a):
+        return math.comb(n1, a) * math.comb(n2, k - a) / total
+
+    observed = p(k1)
+    lo, hi = max(0, k - n2), min(k, n1)
+    return min(1.0, sum(p(a) for a in range(lo, hi + 1) if p(a) <= observed * (1 + 1e-9)))
+
+
+def rates_svg(rows):
+    """A figure of the rates: per cell a dot at k/n and a bar over its Wilson interval,
+    orbslam2 and ORB-SLAM3 side by side. `rows`: [(label, system, k, n)]."""
+    labels = list(dict.fromkeys(label for label, *_ in rows))
+    systems = {"orbslam2": ("#1f77b4", -5), "ORB-SLAM3": ("#d62728", 5)}
+    left, top, row_h, width = 290, 30, 26, 380
+    height = top + row_h * len(labels) + 40
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{left + width + 45}" height="{height}" '
+           'font-family="sans-serif" font-size="12">',
+           f'<rect width="100%" height="100%" fill="white"/>']
+    for i in range(11):
+        x = left + width * i / 10
+        out.append(f'<line x1="{x:.1f}" y1="{top - 8}" x2="{x:.1f}" y2="{height - 32}" stroke="#ddd"/>')
+        if i % 2 == 0:
+            out.append(f'<text x="{x:.1f}" y="{height - 18}" text-anchor="middle">{i / 10:.1f}</text>')
+    out.append(f'<text x="{left + width / 2}" y="{height - 3}" text-anchor="middle">'
+               'runs with a false loop or a wrong join (rate, Wilson 95 % interval)</text>')
+    for j, (name, (colour, _)) in enumerate(systems.items()):
+        out.append(f'<circle cx="{left + 10 + 110 * j}" cy="12" r="4" fill="{colour}"/>'
+                   f'<text x="{left + 18 + 110 * j}" y="16">{name}</text>')
+    for i, label in enumerate(labels):
+        y = top + row_h * i + row_h / 2
+        out.append(f'<text x="{left - 8}" y="{y + 4:.1f}" text-anchor="end">{label}</text>')
+        for lab, system, k, n in rows:
+            if lab != label:
+                continue
+            colour, dy = systems[system]
+            lo, hi = wilson(k, n)
+            x = lambda v: left + width * v  # noqa: E731
+            out.append(f'<line x1="{x(lo):.1f}" y1="{y + dy:.1f}" x2="{x(hi):.1f}" y2="{y + dy:.1f}" '
+                       f'stroke="{colour}" stroke-width="2"/>')
+            out.append(f'<circle cx="{x(k / n):.1f}" cy="{y + dy:.1f}" r="4" fill="{colour}">'
+                       f'<title>{system}: {k} of {n}</title></circle>')
+            out.append(f'<text x="{left + width + 4}" y="{y + dy + 4:.1f}" font-size="10" '
+                       f'fill="{colour}">{k}/{n}</text>')
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
 def cell_of(sweep, cell):
     """(scenario, fence, variation, system) of a kept run."""
     point = dict(cell["point"])
@@ -182,6 +236,30 @@ def main():
         scenario, fence, variation, system = key
         extra = f" ({len(failed[key])} failed)" if key in failed else ""
         lines.append(f"| {scenario} | {fence} | {variation:g} | {system} | {n}{extra} | {k} | {rate} | {ate} |")
+    lines += ["", "![the rates, Wilson 95 % intervals](rates.svg)", ""]
+    figure_rows = []
+    for key in sorted(cells):
+        scenario, fence, variation, system = key
+        runs = cells[key]
+        figure_rows.append((f"{scenario}, fence {fence}, variation {variation:g}", system,
+                             sum(1 for bad, _ in runs if bad), len(runs)))
+    (out.parent / "rates.svg").write_text(rates_svg(figure_rows))
+    lines += ["## Whether the fence decides", "",
+              "Per system and plant variation, S3 with the fence as is against each other",
+              "fence, by Fisher's exact test (two-sided; the probability of so large a",
+              "difference if the fence changed nothing):", ""]
+    for (scenario, fence, variation, system) in sorted(cells):
+        if scenario != "S3" or fence == "as is":
+            continue
+        base = cells.get(("S3", "as is", variation, system))
+        if not base:
+            continue
+        other = cells[("S3", fence, variation, system)]
+        k1, n1 = sum(1 for bad, _ in base if bad), len(base)
+        k2, n2 = sum(1 for bad, _ in other if bad), len(other)
+        p = fisher_two_sided(k1, n1, k2, n2)
+        lines.append(f"- {system}, variation {variation:g}: as is {k1} of {n1} against {fence} "
+                     f"{k2} of {n2}: p = {p:.2g}")
     lines += ["", "## Every false loop and wrong join", ""]
     if not events:
         lines.append("None in the runs kept so far.")
