@@ -67,6 +67,13 @@ pub enum EvalError {
         "reference has {reference} poses but estimate has {estimate}; without time stamps they must be equal"
     )]
     LengthMismatch { reference: usize, estimate: usize },
+    /// Two lists that go pose for pose have different lengths.
+    #[error("{what}: {got} where there are {expected} poses")]
+    CountsDiffer {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
     /// Too few poses for an operation.
     #[error("{what} needs at least {needed} poses, got {got}")]
     TooFewPoses {

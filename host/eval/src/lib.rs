@@ -34,6 +34,7 @@ mod error;
 mod intervals;
 mod io;
 mod joins;
+mod localization;
 mod loops;
 pub mod plot;
 mod relation;
@@ -55,6 +56,10 @@ pub use io::{Format, read_trajectory};
 pub use joins::{
     EXPLAIN_WINDOW_S, EpisodeKind, JoinCriteria, JoinEpisode, JoinReport, MapChangeVerdict,
     wrong_joins,
+};
+pub use localization::{
+    FalseLocalization, Lanes, LocalizationCriteria, LocalizationReport, LocalizedTrajectory,
+    MapReference, evaluate_localization,
 };
 pub use loops::{
     CorrectionJudgement, LoopCounts, LoopCriteria, LoopJudgement, judge_correction, judge_loop,
