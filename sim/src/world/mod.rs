@@ -430,6 +430,60 @@ mod tests {
         }
     }
 
+    /// A map built at one growth stage is used at another (localisation across stages,
+    /// issue 46) with its alignment to the world carried over, which holds only if the
+    /// ground, the plants' feet, the posts and the fence stand where they stood. For both
+    /// shipped worlds, with one world seed, stages 2 and 4 against stage 0: the same
+    /// terrain heights, plant feet, posts, fence and extent, to the bit; the canopy's
+    /// triangles differ (else the stage would change nothing).
+    #[test]
+    fn a_worlds_ground_rows_and_fence_are_the_same_at_every_growth_stage() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs");
+        for name in ["paper-world.toml", "world.toml"] {
+            let cfg = SimConfig::from_file(&std::path::Path::new(root).join(name)).expect("loads");
+            let build = |stage: f64| {
+                let mut c = cfg.clone();
+                c.vineyard.growth_stage = stage;
+                World::from_config(&c)
+            };
+            let bare = build(0.0);
+            let ([x0, x1], [y0, y1]) = bare.extent;
+            let heights = |w: &World| -> Vec<u64> {
+                (0..=40)
+                    .flat_map(|i| (0..=40).map(move |j| (i, j)))
+                    .map(|(i, j)| {
+                        let x = x0 + (x1 - x0) * f64::from(i) / 40.0;
+                        let y = y0 + (y1 - y0) * f64::from(j) / 40.0;
+                        w.terrain.height(x, y).to_bits()
+                    })
+                    .collect()
+            };
+            let feet =
+                |w: &World| -> Vec<Point3<f64>> { w.plants.iter().map(|p| p.base).collect() };
+            for stage in [2.0, 4.0] {
+                let grown = build(stage);
+                assert_eq!(
+                    heights(&grown),
+                    heights(&bare),
+                    "{name}: terrain at stage {stage}"
+                );
+                assert_eq!(
+                    feet(&grown),
+                    feet(&bare),
+                    "{name}: plant feet at stage {stage}"
+                );
+                assert_eq!(grown.posts, bare.posts, "{name}: posts at stage {stage}");
+                assert_eq!(grown.fence, bare.fence, "{name}: fence at stage {stage}");
+                assert_eq!(grown.extent, bare.extent, "{name}: extent at stage {stage}");
+                assert_ne!(
+                    grown.mesh.triangles.len(),
+                    bare.mesh.triangles.len(),
+                    "{name}: stage {stage} grows no canopy"
+                );
+            }
+        }
+    }
+
     #[test]
     fn default_world_has_the_papers_layout() {
         let v = VineyardConfig::default();
