@@ -28,7 +28,7 @@ done
 for k in 1 2 3; do bench orbslam3-s3 "orbslam3-s3-run$k"; done
 bench orbslam3-s3-free orbslam3-s3-free
 for a in plant-variation-paper-world growth-stage-paper-world kiss-icp-instant-sweeps-our-world \
-         ablate-fence-orbslam2 plant-variation-our-world; do
+         ablate-fence-orbslam2 plant-variation-our-world lio-sam-seeds-our-world; do
     sweep "$a"
 done
 # Our world's paper bench, seed 0 (configs/vinebench.toml), if not run yet.
