@@ -2,6 +2,7 @@
 
 mod mesh;
 mod shapes;
+mod survey;
 mod terrain;
 mod trellis;
 mod vine;
@@ -13,6 +14,7 @@ use rand::Rng as _;
 use rayon::prelude::*;
 
 pub use mesh::{Material, Mesh};
+pub use survey::SurveyedGrid;
 pub use terrain::Terrain;
 pub use trellis::post_xs;
 pub use vine::{PlantRng, VineLayout, vine};
@@ -44,7 +46,7 @@ pub struct World {
     /// The fence panels' triangles in `mesh` (they follow the block's): a hit there is on
     /// the fence, whose wood shares the trellis posts' material.
     pub fence_triangles: Range<usize>,
-    /// Extent of the modelled ground: (min, max) in x and y.
+    /// Extent of the modelled ground: its lowest corner `[x, y]` and its highest `[x, y]`.
     pub extent: ([f64; 2], [f64; 2]),
 }
 
