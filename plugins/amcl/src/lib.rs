@@ -16,12 +16,14 @@
 //!   variances used as standard deviations).
 //!
 //! [`grid`] holds the map and its distance field, [`motion`] the odometry model, [`filter`]
-//! the particle filter and its estimate, [`config`] the parameters.
+//! the particle filter and its estimate, [`scan`] the two 2D lidars merged into one scan,
+//! [`config`] the parameters.
 
 pub mod config;
 pub mod filter;
 pub mod grid;
 pub mod motion;
+pub mod scan;
 
 /// A pose in the plane: position (metres) and heading (radians, in (-π, π]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
