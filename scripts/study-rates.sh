@@ -60,6 +60,9 @@ source scripts/setup.sh
 
 sweeps=("$@")
 [ ${#sweeps[@]} -gt 0 ] || sweeps=("${all[@]}")
+# Keep first what a sweep stopped earlier filed, so that the seeds to run are counted from
+# everything done (else a run filed but not yet kept is run a second time).
+save
 for s in "${sweeps[@]}"; do
     file="configs/study/rates/$s.toml"
     # Only the seeds not kept yet, point by point of the axes, whatever build ran the kept
