@@ -419,22 +419,29 @@ mod tests {
     /// A 12 m x 8 m room at 0.1 m: walls, and blocks placed so that no rotation or mirror
     /// maps the room onto itself.
     fn asymmetric_room() -> LikelihoodField {
+        // A crate near the south-west, a wall stub in the north-east, a short wall from the
+        // south wall.
+        walled_room(&[(20, 20, 30, 25), (80, 50, 83, 70), (50, 0, 52, 15)])
+    }
+
+    /// A 12 m x 8 m room at 0.1 m, walled, with `blocks` of cells `(i0, j0, i1, j1)`
+    /// (ends excluded) occupied.
+    fn walled_room(blocks: &[(usize, usize, usize, usize)]) -> LikelihoodField {
         let (w, h) = (120, 80);
+        let walls = [
+            (0, 0, w, 1),
+            (0, h - 1, w, h),
+            (0, 0, 1, h),
+            (w - 1, 0, w, h),
+        ];
         let mut cells = vec![0i8; w * h];
-        let mut block = |i0: usize, j0: usize, i1: usize, j1: usize| {
+        for &(i0, j0, i1, j1) in walls.iter().chain(blocks) {
             for j in j0..j1 {
                 for i in i0..i1 {
                     cells[j * w + i] = 100;
                 }
             }
-        };
-        block(0, 0, w, 1);
-        block(0, h - 1, w, h);
-        block(0, 0, 1, h);
-        block(w - 1, 0, w, h);
-        block(20, 20, 30, 25); // a crate near the south-west
-        block(80, 50, 83, 70); // a wall stub in the north-east
-        block(50, 0, 52, 15); // a short wall from the south wall
+        }
         LikelihoodField::new(Grid::new(0.1, [0.0, 0.0], w, h, cells).expect("grid"), 2.0)
     }
 
@@ -518,23 +525,8 @@ mod tests {
     /// The confident wrong-lane localisation that issue 46's metrics count.
     #[test]
     fn where_two_places_look_alike_it_commits_to_one_right_or_wrong() {
-        let (w, h) = (120, 80);
-        let mut cells = vec![0i8; w * h];
-        let mut block = |i0: usize, j0: usize, i1: usize, j1: usize| {
-            for j in j0..j1 {
-                for i in i0..i1 {
-                    cells[j * w + i] = 100;
-                }
-            }
-        };
-        block(0, 0, w, 1);
-        block(0, h - 1, w, h);
-        block(0, 0, 1, h);
-        block(w - 1, 0, w, h);
-        block(20, 20, 30, 25); // and its image under the half turn about the centre
-        block(90, 55, 100, 60);
-        let field =
-            LikelihoodField::new(Grid::new(0.1, [0.0, 0.0], w, h, cells).expect("grid"), 2.0);
+        // Two crates, each the other's image under the half turn about the centre.
+        let field = walled_room(&[(20, 20, 30, 25), (90, 55, 100, 60)]);
         // Per seed: confidently at the truth, confidently at its image, or not localised.
         let mut outcomes = [0; 3];
         for seed in 0..8 {
