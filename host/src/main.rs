@@ -24,6 +24,8 @@ enum Command {
     Eval(vinebench::cmd::eval::EvalArgs),
     /// Run one plugin on one scenario and score it.
     Run(vinebench::cmd::run::RunArgs),
+    /// Start a plugin from a map built earlier and judge its localisation.
+    Localize(vinebench::cmd::localize::LocalizeArgs),
     /// Run a matrix of scenarios x plugins and write the paper's table.
     Bench(vinebench::cmd::bench::BenchArgs),
     /// Run a sweep (a bench file plus seeds and world axes), resumable, here or on Slurm.
@@ -52,6 +54,7 @@ fn main() -> std::process::ExitCode {
         Command::Export(args) => vinebench::cmd::export::run(&args),
         Command::Eval(args) => vinebench::cmd::eval::run(&args),
         Command::Run(args) => vinebench::cmd::run::run(&args),
+        Command::Localize(args) => vinebench::cmd::localize::run(&args),
         Command::Bench(args) => vinebench::cmd::bench::run(&args),
         Command::Sweep(args) => vinebench::cmd::sweep::run(&args),
         Command::SweepTask(args) => vinebench::cmd::sweep::run_task(&args),

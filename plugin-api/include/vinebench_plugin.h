@@ -48,7 +48,21 @@
  *     field an older plugin does not know stays 0 / NULL: absent.
  * Revision 1: everything not marked otherwise. Revision 2: `requirements_for`,
  * `create_with` with `vb_create_info` and the typed `vb_rig`. Revision 3: an event's
- * `loop_matches` (in `events_toml`; no layout changed).
+ * `loop_matches` (in `events_toml`; no layout changed). Revision 4: localisation in a saved
+ * map: `can_localize` in the requirements, `vb_output`'s `saved_map*` fields, the map and
+ * `initial_guess` in `vb_create_info`, and VB_POSE_SEARCHING.
+ *
+ * Localisation (revision 4): a plugin whose requirements say `can_localize = true` may save
+ * its map at `finish` (`saved_map*`: opaque bytes in a format it names and versions; the
+ * host writes them as the run folder's `map.bin`) and be created again from those bytes:
+ * `create_with` then gets `info->map` (non-NULL, `map_len` bytes, valid for the call only:
+ * copy what you keep), `map_format`, `map_format_version` and, where the run gives one,
+ * `initial_guess` (else the start is unknown: global localisation). A plugin that localises
+ * in a 2D occupancy grid gets the host's format "vinebench-grid" version 1: little-endian
+ * resolution_m (double), origin x, y, yaw (3 doubles), width, height (uint32), then
+ * width * height int8 cells (-1 unknown, 0 free .. 100 occupied, row-major from the origin).
+ * Every pose returned then carries the system's belief: VB_POSE (localised) or
+ * VB_POSE_SEARCHING (a pose, but still searching where it is in the map).
  */
 #ifndef VINEBENCH_PLUGIN_H
 #define VINEBENCH_PLUGIN_H
@@ -62,12 +76,15 @@ extern "C" {
 #endif
 
 #define VB_ABI_VERSION 1u
-#define VB_ABI_REVISION 3u
+#define VB_ABI_REVISION 4u
 
 /* Return values of the message callbacks and of `finish`. */
 #define VB_NO_POSE 0  /* handled; no estimate with this message */
 #define VB_POSE 1     /* handled; `*estimate` holds map_from_base at some stamp */
 #define VB_ERROR (-1) /* failed; `last_error(self)` says why */
+/* Revision 4: handled; `*estimate` holds map_from_base, but the system is still searching
+ * where it is in its map (localisation mode); VB_POSE there means localised. */
+#define VB_POSE_SEARCHING 2
 
 /* A stamped rigid transform `a_from_b` (which frames is said where it is used). */
 typedef struct vb_pose {
@@ -170,7 +187,21 @@ typedef struct vb_output {
      * colour frames at the two stamps; revision 3); NULL or "": none. An unknown kind fails
      * the run with a line naming it. */
     const char *events_toml;
+    /* Revision 4: the map to localise in later, `saved_map_len` opaque bytes (NULL: none),
+     * in the format named by `saved_map_format` (NUL-terminated, e.g. "my-slam-keyframes")
+     * of version `saved_map_version`. */
+    const uint8_t *saved_map;
+    size_t saved_map_len;
+    const char *saved_map_format;
+    uint32_t saved_map_version;
 } vb_output;
+
+/* Revision 4: where the robot starts in the map, with its uncertainty. */
+typedef struct vb_initial_guess {
+    vb_pose map_from_base;
+    double sigma_xy_m;    /* standard deviation of x and of y, metres */
+    double sigma_yaw_rad; /* standard deviation of the heading, radians */
+} vb_initial_guess;
 
 /* Revision 2: the rig, typed. One datasheet figure of a sensor, e.g. {"fx", 525.0}. */
 typedef struct vb_param {
@@ -203,6 +234,13 @@ typedef struct vb_create_info {
     const char *config_toml; /* the plugin's parameter table, verbatim (NUL-terminated) */
     const char *rig_toml;    /* the rig as TOML text, as `create` gets it */
     const vb_rig *rig;       /* the same rig, typed */
+    /* Revision 4 (read only when abi_revision >= 4): NULL, or the saved map to localise in
+     * (localisation mode; see "Localisation" above). */
+    const uint8_t *map;
+    size_t map_len;
+    const char *map_format; /* NUL-terminated; NULL when `map` is */
+    uint32_t map_format_version;
+    const vb_initial_guess *initial_guess; /* NULL: the start is unknown */
 } vb_create_info;
 
 /* The sensor called `name`, or NULL. */
@@ -245,8 +283,9 @@ typedef struct vb_plugin {
     uint32_t struct_size; /* sizeof(vb_plugin) */
     const char *name;     /* short name the host finds it by, e.g. "my-slam" */
     const char *version;
-    /* TOML: `sensors = [...]` of "imu", "wheel_odometry", "lidar", "scan2d", "rgbd", and
-     * `mode = "online"` or "offline". */
+    /* TOML: `sensors = [...]` of "imu", "wheel_odometry", "lidar", "scan2d", "rgbd",
+     * `mode = "online"` or "offline", and (revision 4) `can_localize = true` for a plugin
+     * that `create_with` can start from a saved map. */
     const char *requirements_toml;
 
     /* NULL or the new system; NULL: `last_error(NULL)` says why. */

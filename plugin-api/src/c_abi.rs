@@ -13,19 +13,24 @@ use std::path::Path;
 
 use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::Rig;
-use crate::system::{OccupancyGrid, PluginError, Requirements, SlamOutput};
+use crate::system::{
+    InitialGuess, MapStart, OccupancyGrid, PluginError, PoseStatus, Requirements, SavedMap,
+    SlamOutput,
+};
 
 /// The header's `VB_ABI_VERSION`: the major version, the same for every table the host
 /// accepts.
 pub const ABI_VERSION: u32 = 1;
 /// The header's `VB_ABI_REVISION`: how many rounds of appended fields it has
 /// (docs/plugin-contract.md, "Versions").
-pub const ABI_REVISION: u32 = 3;
+pub const ABI_REVISION: u32 = 4;
 /// The symbol a C plugin exports.
 pub const SYMBOL: &[u8] = b"vinebench_plugin_v1\0";
 
 const NO_POSE: i32 = 0;
 const POSE: i32 = 1;
+/// Revision 4: a pose, the system still searching where it is in its map.
+const POSE_SEARCHING: i32 = 2;
 
 #[repr(C)]
 struct PointCloudC {
@@ -111,6 +116,12 @@ struct CreateInfoC {
     config_toml: *const c_char,
     rig_toml: *const c_char,
     rig: *const RigC,
+    // Revision 4.
+    map: *const u8,
+    map_len: usize,
+    map_format: *const c_char,
+    map_format_version: u32,
+    initial_guess: *const InitialGuess,
 }
 
 #[repr(C)]
@@ -121,6 +132,11 @@ struct OutputC {
     n_map_points: usize,
     grid: *const GridC,
     events_toml: *const c_char,
+    // Revision 4.
+    saved_map: *const u8,
+    saved_map_len: usize,
+    saved_map_format: *const c_char,
+    saved_map_version: u32,
 }
 
 type Callback<M> = Option<unsafe extern "C" fn(*mut c_void, *const M, *mut Pose) -> i32>;
@@ -295,11 +311,27 @@ impl CPlugin {
     }
 
     /// Creates the system with its parameters and the rig (`create_with` where the table
-    /// has it, with the rig typed; else `create`).
-    pub fn create(&self, config_toml: &str, rig: &Rig) -> Result<CInstance, PluginError> {
+    /// has it, with the rig typed; else `create`), in localisation mode from `start`'s map
+    /// where given (revision 4: through `create_with` only).
+    pub fn create(
+        &self,
+        config_toml: &str,
+        rig: &Rig,
+        start: Option<&MapStart<'_>>,
+    ) -> Result<CInstance, PluginError> {
         let nul = |what: &str| PluginError(format!("the {what} contains a NUL byte"));
         let config = CString::new(config_toml).map_err(|_| nul("parameter table"))?;
         let rig_toml = CString::new(rig.to_toml()).map_err(|_| nul("rig"))?;
+        if start.is_some() && self.table.create_with.is_none() {
+            return Err(PluginError(
+                "localisation needs create_with (revision 4), which this plugin's table lacks"
+                    .into(),
+            ));
+        }
+        let format = start
+            .map(|s| CString::new(s.format).map_err(|_| nul("map format")))
+            .transpose()?;
+        let guess = start.and_then(|s| s.initial_guess);
         let this = match (self.table.create_with, self.table.create) {
             (Some(create_with), _) => {
                 let typed = TypedRig::new(rig).map_err(|what| nul(&what))?;
@@ -309,6 +341,18 @@ impl CPlugin {
                     config_toml: config.as_ptr(),
                     rig_toml: rig_toml.as_ptr(),
                     rig: &typed.rig,
+                    // A map of no bytes is still a map: never NULL in localisation mode.
+                    map: start.map_or(std::ptr::null(), |s| {
+                        if s.map.is_empty() {
+                            std::ptr::NonNull::<u8>::dangling().as_ptr().cast_const()
+                        } else {
+                            s.map.as_ptr()
+                        }
+                    }),
+                    map_len: start.map_or(0, |s| s.map.len()),
+                    map_format: format.as_ref().map_or(std::ptr::null(), |f| f.as_ptr()),
+                    map_format_version: start.map_or(0, |s| s.format_version),
+                    initial_guess: guess.as_ref().map_or(std::ptr::null(), |g| g as *const _),
                 };
                 // SAFETY: `info` and everything it points to (`typed`, the strings) live
                 // through the call.
@@ -324,6 +368,7 @@ impl CPlugin {
         Ok(CInstance {
             table: self.table,
             this,
+            status: PoseStatus::Localized,
         })
     }
 
@@ -423,6 +468,8 @@ impl TypedRig {
 pub struct CInstance {
     table: &'static Table,
     this: *mut c_void,
+    /// The status of the pose last returned (`VB_POSE` or `VB_POSE_SEARCHING`).
+    status: PoseStatus,
 }
 
 // SAFETY: the host drives an instance from one thread at a time, as the header promises the
@@ -459,9 +506,21 @@ impl CInstance {
         // SAFETY: `this` is live, `message` and `estimate` are valid for the call.
         match unsafe { f(self.this, message, &mut estimate) } {
             NO_POSE => Ok(None),
-            POSE => Ok(Some(estimate)),
+            POSE => {
+                self.status = PoseStatus::Localized;
+                Ok(Some(estimate))
+            }
+            POSE_SEARCHING => {
+                self.status = PoseStatus::Searching;
+                Ok(Some(estimate))
+            }
             _ => Err(self.error(what)),
         }
+    }
+
+    /// The status of the pose last returned.
+    pub fn status(&self) -> PoseStatus {
+        self.status
     }
 
     pub fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
@@ -527,6 +586,10 @@ impl CInstance {
             n_map_points: 0,
             grid: std::ptr::null(),
             events_toml: std::ptr::null(),
+            saved_map: std::ptr::null(),
+            saved_map_len: 0,
+            saved_map_format: std::ptr::null(),
+            saved_map_version: 0,
         };
         // SAFETY: `this` is live and `o` is valid for the call.
         if unsafe { finish(self.this, &mut o) } != 0 {
@@ -607,11 +670,33 @@ unsafe fn output_from_c(o: &OutputC) -> Result<SlamOutput, PluginError> {
         let toml_text = unsafe { text(o.events_toml, "events_toml") }.map_err(|e| bad(&e))?;
         crate::ffi::events_from_toml(&toml_text).map_err(|e| bad(&e))?
     };
+    let saved_map = if o.saved_map.is_null() {
+        None
+    } else {
+        // SAFETY: NUL-terminated, kept alive by the plugin.
+        let format =
+            unsafe { text(o.saved_map_format, "saved_map_format") }.map_err(|e| bad(&e))?;
+        if format.trim().is_empty() {
+            return Err(bad("saved_map_format is empty"));
+        }
+        // SAFETY: `saved_map_len` bytes, as the header requires.
+        let bytes = if o.saved_map_len == 0 {
+            Vec::new()
+        } else {
+            unsafe { std::slice::from_raw_parts(o.saved_map, o.saved_map_len) }.to_vec()
+        };
+        Some(SavedMap {
+            format,
+            version: o.saved_map_version,
+            bytes,
+        })
+    };
     Ok(SlamOutput {
         trajectory,
         map,
         grid,
         events,
+        saved_map,
     })
 }
 
@@ -716,7 +801,11 @@ mod tests {
                 map_xyz,
                 n_map_points,
                 grid,
-                events_toml
+                events_toml,
+                saved_map,
+                saved_map_len,
+                saved_map_format,
+                saved_map_version
             ]
         );
         layout!(out, "vb_param", ParamC, [key, value]);
@@ -741,7 +830,24 @@ mod tests {
             out,
             "vb_create_info",
             CreateInfoC,
-            [struct_size, abi_revision, config_toml, rig_toml, rig]
+            [
+                struct_size,
+                abi_revision,
+                config_toml,
+                rig_toml,
+                rig,
+                map,
+                map_len,
+                map_format,
+                map_format_version,
+                initial_guess
+            ]
+        );
+        layout!(
+            out,
+            "vb_initial_guess",
+            InitialGuess,
+            [map_from_base, sigma_xy_m, sigma_yaw_rad]
         );
         layout!(
             out,
@@ -769,7 +875,8 @@ mod tests {
         out.push_str(&format!(
             "VB_ASSERT(VB_ABI_VERSION == {ABI_VERSION}, \"VB_ABI_VERSION\");\n\
              VB_ASSERT(VB_ABI_REVISION == {ABI_REVISION}, \"VB_ABI_REVISION\");\n\
-             VB_ASSERT(VB_PLUGIN_SIZE_REVISION_1 == {TABLE_SIZE_REVISION_1}, \"revision 1's size\");\n"
+             VB_ASSERT(VB_PLUGIN_SIZE_REVISION_1 == {TABLE_SIZE_REVISION_1}, \"revision 1's size\");\n\
+             VB_ASSERT(VB_POSE_SEARCHING == {POSE_SEARCHING}, \"VB_POSE_SEARCHING\");\n"
         ));
         out
     }
@@ -883,15 +990,32 @@ mod tests {
             n_map_points: 1,
             grid: &grid,
             events_toml: events.as_ptr(),
+            saved_map: [1u8, 2, 3].as_ptr(),
+            saved_map_len: 3,
+            saved_map_format: c"keyframes".as_ptr(),
+            saved_map_version: 2,
         };
         // SAFETY: every pointer points to as many elements as its length says.
         let out = unsafe { output_from_c(&o) }.expect("a valid output");
         assert_eq!(out.trajectory, poses);
+        assert_eq!(
+            out.saved_map,
+            Some(SavedMap {
+                format: "keyframes".into(),
+                version: 2,
+                bytes: vec![1, 2, 3],
+            })
+        );
         assert_eq!(out.map, Some(vec![[0.5, 0.25, -1.0]]));
         let g = out.grid.expect("grid");
         assert_eq!((g.width, g.height, g.cells.as_slice()), (2, 2, &cells[..]));
         assert_eq!(out.events.len(), 1);
         assert_eq!(out.events[0].loop_stamps_ns, Some([6, 5]));
+        o.saved_map_format = std::ptr::null();
+        // SAFETY: as above; the missing format is what is checked.
+        let refused = unsafe { output_from_c(&o) }.expect_err("a map without its format");
+        assert!(refused.0.contains("saved_map_format is NULL"), "{refused}");
+        o.saved_map = std::ptr::null();
         o.trajectory = std::ptr::null();
         // SAFETY: as above; the NULL is what is checked.
         let refused = unsafe { output_from_c(&o) }.expect_err("NULL with a length");
@@ -1030,6 +1154,8 @@ pub mod fuzzing {
             },
         };
         let events = b.c_string(4096);
+        let saved: Vec<u8> = (0..b.u8() % 32).map(|_| b.u8()).collect();
+        let saved_format = b.c_string(64);
         let o = OutputC {
             trajectory: if flags & 1 != 0 {
                 std::ptr::null()
@@ -1053,6 +1179,18 @@ pub mod fuzzing {
             } else {
                 events.as_ptr().cast()
             },
+            saved_map: if flags & 32 != 0 {
+                std::ptr::null()
+            } else {
+                saved.as_ptr()
+            },
+            saved_map_len: saved.len(),
+            saved_map_format: if flags & 64 != 0 {
+                std::ptr::null()
+            } else {
+                saved_format.as_ptr().cast()
+            },
+            saved_map_version: u32::from(flags),
         };
         // SAFETY: every non-NULL pointer points to as many elements as its length says.
         let _ = unsafe { output_from_c(&o) };
@@ -1123,6 +1261,7 @@ pub mod fuzzing {
             table,
             // Never dereferenced by these callbacks; `destroy` is absent.
             this: std::ptr::NonNull::<u8>::dangling().as_ptr().cast(),
+            status: PoseStatus::Localized,
         };
         let imu = Imu {
             stamp_ns: 1,
@@ -1133,6 +1272,7 @@ pub mod fuzzing {
         if let Ok(Some(p)) = instance.on_imu(&imu) {
             // What the worker then checks before recording it.
             let _ = p.isometry();
+            let _ = instance.status();
         }
     }
 }

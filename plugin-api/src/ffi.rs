@@ -24,7 +24,10 @@ use abi_stable::{StableAbi, declare_root_module_statics, package_version_strings
 
 use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::Rig;
-use crate::system::{Event, OccupancyGrid, PluginError, SlamOutput, SlamSystem};
+use crate::system::{
+    Event, InitialGuess, MapStart, OccupancyGrid, PluginError, PoseStatus, SavedMap, SlamOutput,
+    SlamSystem,
+};
 
 /// What a plugin says about itself before it is created.
 #[repr(C)]
@@ -50,6 +53,33 @@ pub struct PluginModule {
     /// built before it, whose `info` requirements then stand).
     #[sabi(missing_field(option))]
     pub requirements_for: extern "C" fn(config_toml: RStr<'_>) -> RResult<RString, RString>,
+    /// Creates the system in localisation mode from a saved map (revision 4; absent from
+    /// plugins built before it, which cannot localise).
+    #[sabi(missing_field(option))]
+    pub create_localizing: extern "C" fn(
+        config_toml: RStr<'_>,
+        rig_toml: RStr<'_>,
+        start: MapStartFfi<'_>,
+    ) -> RResult<SlamBox, RString>,
+}
+
+/// [`crate::MapStart`] across the ABI.
+#[repr(C)]
+#[derive(StableAbi, Clone, Copy)]
+pub struct MapStartFfi<'a> {
+    pub map: RSlice<'a, u8>,
+    pub format: RStr<'a>,
+    pub format_version: u32,
+    pub initial_guess: ROption<InitialGuess>,
+}
+
+/// [`crate::SavedMap`] across the ABI.
+#[repr(C)]
+#[derive(StableAbi)]
+pub struct SavedMapFfi {
+    pub format: RString,
+    pub version: u32,
+    pub bytes: RVec<u8>,
 }
 
 impl RootModule for PluginModuleRef {
@@ -125,6 +155,15 @@ pub trait SlamFfi: Send {
     fn on_rgbd(&mut self, frame: RgbdFrameFfi<'_>) -> RResult<ROption<Pose>, RString>;
     #[sabi(last_prefix_field)]
     fn finish(&mut self) -> RResult<OutputFfi, RString>;
+    /// Revision 4: the status of the pose last returned. The default is what a plugin built
+    /// before it gets (abi_stable calls a default method missing from an older vtable).
+    fn status(&self) -> PoseStatus {
+        PoseStatus::Localized
+    }
+    /// Revision 4: the map `finish` saved, once, after `finish`.
+    fn take_saved_map(&mut self) -> ROption<SavedMapFfi> {
+        ROption::RNone
+    }
 }
 
 /// A created plugin behind the stable ABI.
@@ -150,9 +189,10 @@ fn pose_result(r: Result<Option<Pose>, String>) -> RResult<ROption<Pose>, RStrin
     r.map(ROption::from).map_err(RString::from).into()
 }
 
-/// Wraps an author's system for the ABI.
+/// Wraps an author's system for the ABI, keeping the map its `finish` saved until the host
+/// takes it.
 #[derive(Debug)]
-pub struct Adapter<T>(T);
+pub struct Adapter<T>(T, Option<SavedMap>);
 
 impl<T: SlamSystem> SlamFfi for Adapter<T> {
     fn on_imu(&mut self, imu: &Imu) -> RResult<ROption<Pose>, RString> {
@@ -202,9 +242,37 @@ impl<T: SlamSystem> SlamFfi for Adapter<T> {
 
     fn finish(&mut self) -> RResult<OutputFfi, RString> {
         guard(|| self.0.finish())
-            .map(output_to_ffi)
+            .map(|mut output| {
+                self.1 = output.saved_map.take();
+                output_to_ffi(output)
+            })
             .map_err(RString::from)
             .into()
+    }
+
+    fn status(&self) -> PoseStatus {
+        // A panic here cannot be reported as an error: it counts as searching.
+        catch_unwind(AssertUnwindSafe(|| self.0.status())).unwrap_or(PoseStatus::Searching)
+    }
+
+    fn take_saved_map(&mut self) -> ROption<SavedMapFfi> {
+        self.1
+            .take()
+            .map(|m| SavedMapFfi {
+                format: m.format.into(),
+                version: m.version,
+                bytes: m.bytes.into(),
+            })
+            .into()
+    }
+}
+
+/// Back to the author-side type (host side).
+pub fn saved_map_from_ffi(m: SavedMapFfi) -> SavedMap {
+    SavedMap {
+        format: m.format.into_string(),
+        version: m.version,
+        bytes: m.bytes.into_vec(),
     }
 }
 
@@ -255,6 +323,7 @@ pub fn output_from_ffi(o: OutputFfi) -> Result<SlamOutput, String> {
             cells: g.cells.into_vec(),
         }),
         events,
+        saved_map: None,
     })
 }
 
@@ -286,7 +355,27 @@ extern "C" fn create<T: SlamSystem>(
         let rig = Rig::from_toml(rig_toml.as_str()).map_err(PluginError)?;
         T::new(config_toml.as_str(), &rig)
     })
-    .map(|system| SlamFfi_TO::from_value(Adapter(system), TD_Opaque))
+    .map(|system| SlamFfi_TO::from_value(Adapter(system, None), TD_Opaque))
+    .map_err(RString::from)
+    .into()
+}
+
+extern "C" fn create_localizing<T: SlamSystem>(
+    config_toml: RStr<'_>,
+    rig_toml: RStr<'_>,
+    start: MapStartFfi<'_>,
+) -> RResult<SlamBox, RString> {
+    guard(|| {
+        let rig = Rig::from_toml(rig_toml.as_str()).map_err(PluginError)?;
+        let start = MapStart {
+            map: start.map.as_slice(),
+            format: start.format.as_str(),
+            format_version: start.format_version,
+            initial_guess: start.initial_guess.into_option(),
+        };
+        T::localize(config_toml.as_str(), &rig, &start)
+    })
+    .map(|system| SlamFfi_TO::from_value(Adapter(system, None), TD_Opaque))
     .map_err(RString::from)
     .into()
 }
@@ -297,6 +386,7 @@ pub fn module<T: SlamSystem>() -> PluginModuleRef {
         info: info::<T>,
         create: create::<T>,
         requirements_for: requirements_for::<T>,
+        create_localizing: create_localizing::<T>,
     }
     .leak_into_prefix()
 }

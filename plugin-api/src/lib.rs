@@ -54,7 +54,8 @@ pub use parameters::Parameters;
 pub use rig::{Pinhole, Rig, SensorKind, SensorSpec};
 pub use stages::Stages;
 pub use system::{
-    Event, EventKind, Mode, OccupancyGrid, PluginError, Requirements, SlamOutput, SlamSystem,
+    Event, EventKind, GRID_MAP_FORMAT, GRID_MAP_VERSION, InitialGuess, MapStart, Mode,
+    OccupancyGrid, PluginError, PoseStatus, Requirements, SavedMap, SlamOutput, SlamSystem,
 };
 
 /// This crate's version: a Rust plugin loads when its plugin-api has the host's

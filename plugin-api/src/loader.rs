@@ -10,11 +10,12 @@ use abi_stable::std_types::{ROption, RResult, RString};
 
 use crate::c_abi::{CInstance, CPlugin};
 use crate::ffi::{
-    LaserScanFfi, PluginModuleRef, PointCloudFfi, RgbdFrameFfi, SlamBox, output_from_ffi,
+    LaserScanFfi, MapStartFfi, PluginModuleRef, PointCloudFfi, RgbdFrameFfi, SlamBox,
+    output_from_ffi, saved_map_from_ffi,
 };
 use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::Rig;
-use crate::system::{PluginError, Requirements, SlamOutput};
+use crate::system::{MapStart, PluginError, PoseStatus, Requirements, SlamOutput};
 
 /// Why a library could not be used as a plugin: one line naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -222,7 +223,47 @@ impl LoadedPlugin {
                     RResult::RErr(e) => Err(PluginError(e.into_string())),
                 }
             }
-            Module::C(c) => c.create(config_toml, rig).map(PluginInstance::C),
+            Module::C(c) => c.create(config_toml, rig, None).map(PluginInstance::C),
+        }
+    }
+
+    /// Creates the system in localisation mode from a saved map (revision 4). A plugin that
+    /// does not say `can_localize` for these parameters, or was built before the call
+    /// existed, is refused with a line saying so.
+    pub fn create_localizing(
+        &self,
+        config_toml: &str,
+        rig: &Rig,
+        start: &MapStart<'_>,
+    ) -> Result<PluginInstance, PluginError> {
+        if !self.requirements_for(config_toml)?.can_localize {
+            return Err(PluginError(format!(
+                "{} cannot localise in a saved map (its requirements do not say can_localize)",
+                self.name
+            )));
+        }
+        match &self.module {
+            Module::Rust(module) => {
+                let Some(create) = module.create_localizing() else {
+                    return Err(PluginError(format!(
+                        "{} was built before plugins could localise (plugin-api revision < 4)",
+                        self.name
+                    )));
+                };
+                let ffi = MapStartFfi {
+                    map: start.map.into(),
+                    format: start.format.into(),
+                    format_version: start.format_version,
+                    initial_guess: start.initial_guess.into(),
+                };
+                match create(config_toml.into(), rig.to_toml().as_str().into(), ffi) {
+                    RResult::ROk(inner) => Ok(PluginInstance::Rust(inner)),
+                    RResult::RErr(e) => Err(PluginError(e.into_string())),
+                }
+            }
+            Module::C(c) => c
+                .create(config_toml, rig, Some(start))
+                .map(PluginInstance::C),
         }
     }
 }
@@ -307,10 +348,24 @@ impl PluginInstance {
         }))
     }
 
+    /// The status of the pose last returned (revision 4; plugins built before it:
+    /// localised).
+    pub fn status(&self) -> PoseStatus {
+        match self {
+            Self::Rust(inner) => inner.status(),
+            Self::C(c) => c.status(),
+        }
+    }
+
+    /// The final output, with the map the plugin saved (revision 4).
     pub fn finish(&mut self) -> Result<SlamOutput, PluginError> {
         match self {
             Self::Rust(inner) => match inner.finish() {
-                RResult::ROk(o) => output_from_ffi(o).map_err(PluginError),
+                RResult::ROk(o) => {
+                    let mut output = output_from_ffi(o).map_err(PluginError)?;
+                    output.saved_map = inner.take_saved_map().into_option().map(saved_map_from_ffi);
+                    Ok(output)
+                }
                 RResult::RErr(e) => Err(PluginError(e.into_string())),
             },
             Self::C(c) => c.finish(),

@@ -1,5 +1,6 @@
 //! The trait a SLAM plugin implements, and what it returns.
 
+use abi_stable::StableAbi;
 use serde::{Deserialize, Serialize};
 
 use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
@@ -31,6 +32,10 @@ pub struct Requirements {
     /// Sensor kinds the host must stream to it; others are not simulated for it.
     pub sensors: Vec<SensorKind>,
     pub mode: Mode,
+    /// Whether the system can be started from a map it saved earlier and localise in it
+    /// ([`SlamSystem::localize`]); revision 4. Absent (an older plugin): it cannot.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub can_localize: bool,
 }
 
 impl Requirements {
@@ -38,9 +43,93 @@ impl Requirements {
         Self {
             sensors: sensors.to_vec(),
             mode: Mode::Online,
+            can_localize: false,
+        }
+    }
+
+    /// These requirements, saying the system can localise in a saved map.
+    pub fn localizing(mut self) -> Self {
+        self.can_localize = true;
+        self
+    }
+}
+
+/// What a system believes of the pose it just returned (revision 4): localised in its map,
+/// or still searching for where it is. A mapping run's poses are all
+/// [`PoseStatus::Localized`] (the map is the system's own).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, StableAbi)]
+#[serde(rename_all = "snake_case")]
+pub enum PoseStatus {
+    #[default]
+    Localized = 0,
+    Searching = 1,
+}
+
+impl PoseStatus {
+    /// The status's name as it crosses the Python door and is written in `status.csv`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Localized => "localized",
+            Self::Searching => "searching",
+        }
+    }
+
+    /// The status called `name` (`localized` or `searching`).
+    pub fn from_name(name: &str) -> Result<Self, PluginError> {
+        match name {
+            "localized" => Ok(Self::Localized),
+            "searching" => Ok(Self::Searching),
+            other => Err(PluginError(format!(
+                "unknown pose status {other:?} (known: localized, searching)"
+            ))),
         }
     }
 }
+
+/// A map a system saved at [`SlamSystem::finish`] (revision 4): opaque bytes in a format
+/// the plugin names and versions. The host writes it as the run folder's `map.bin`, behind
+/// a header naming the plugin, the format and a checksum, and hands the same bytes back to
+/// [`SlamSystem::localize`].
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct SavedMap {
+    /// The format's name, e.g. `"rtabmap-locations"`.
+    pub format: String,
+    /// The format's version: a plugin refuses bytes of a version it cannot read.
+    pub version: u32,
+    pub bytes: Vec<u8>,
+}
+
+/// A guess of where the robot starts in the map, with its uncertainty (revision 4). Without
+/// one the start is unknown: global localisation.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, StableAbi)]
+pub struct InitialGuess {
+    /// The guessed pose `map_from_base` (its stamp is the run's first instant, 0).
+    pub map_from_base: Pose,
+    /// Standard deviation of the position in x and in y (m).
+    pub sigma_xy_m: f64,
+    /// Standard deviation of the heading (rad).
+    pub sigma_yaw_rad: f64,
+}
+
+/// What a system starting in localisation mode gets (revision 4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapStart<'a> {
+    /// The bytes of the saved map: what this plugin returned as [`SavedMap::bytes`], or for
+    /// [`GRID_MAP_FORMAT`] an occupancy grid the host read ([`OccupancyGrid::from_map_bytes`]).
+    pub map: &'a [u8],
+    pub format: &'a str,
+    pub format_version: u32,
+    pub initial_guess: Option<InitialGuess>,
+}
+
+/// The format of a map the host builds itself from an occupancy grid (a mapping run's
+/// `grid.pgm` or the world's surveyed grid), for systems that localise in a 2D grid
+/// (`amcl`): [`OccupancyGrid::to_map_bytes`].
+pub const GRID_MAP_FORMAT: &str = "vinebench-grid";
+/// The version of [`GRID_MAP_FORMAT`].
+pub const GRID_MAP_VERSION: u32 = 1;
 
 /// What kind of thing an [`Event`] is: the one registry of event kinds, for all three doors
 /// (the C header's `events_toml` and the Python bridge's `finish()` take the same names,
@@ -226,6 +315,58 @@ pub struct OccupancyGrid {
     pub cells: Vec<i8>,
 }
 
+impl OccupancyGrid {
+    /// The grid as [`GRID_MAP_FORMAT`] bytes: little-endian `resolution_m` (f64), `origin`
+    /// (3 x f64), `width`, `height` (u32), then the cells (i8, row-major).
+    pub fn to_map_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(40 + self.cells.len());
+        out.extend_from_slice(&self.resolution_m.to_le_bytes());
+        for v in self.origin {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&self.width.to_le_bytes());
+        out.extend_from_slice(&self.height.to_le_bytes());
+        out.extend(self.cells.iter().map(|&c| c as u8));
+        out
+    }
+
+    /// A grid from [`OccupancyGrid::to_map_bytes`]; an error says what is wrong.
+    pub fn from_map_bytes(bytes: &[u8]) -> Result<Self, PluginError> {
+        let bad = |why: &str| PluginError(format!("not a {GRID_MAP_FORMAT} map: {why}"));
+        if bytes.len() < 40 {
+            return Err(bad("shorter than its 40-byte head"));
+        }
+        let f = |i: usize| f64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
+        let u = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().expect("4 bytes"));
+        let (resolution_m, origin, width, height) = (f(0), [f(8), f(16), f(24)], u(32), u(36));
+        if !(resolution_m.is_finite() && resolution_m > 0.0)
+            || origin.iter().any(|v| !v.is_finite())
+        {
+            return Err(bad(
+                "its resolution is not positive or its origin not finite",
+            ));
+        }
+        let n = width as usize * height as usize;
+        if bytes.len() - 40 != n {
+            return Err(bad(&format!(
+                "{width} x {height} cells, but {} bytes of cells",
+                bytes.len() - 40
+            )));
+        }
+        let cells: Vec<i8> = bytes[40..].iter().map(|&b| b as i8).collect();
+        if cells.iter().any(|&c| !(-1..=100).contains(&c)) {
+            return Err(bad("a cell outside -1 ..= 100"));
+        }
+        Ok(Self {
+            resolution_m,
+            origin,
+            width,
+            height,
+            cells,
+        })
+    }
+}
+
 /// What a plugin returns when the data is over.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SlamOutput {
@@ -235,6 +376,8 @@ pub struct SlamOutput {
     pub map: Option<Vec<[f32; 3]>>,
     pub grid: Option<OccupancyGrid>,
     pub events: Vec<Event>,
+    /// The map to localise in later (revision 4): written as the run folder's `map.bin`.
+    pub saved_map: Option<SavedMap>,
 }
 
 /// A SLAM system as a plugin author writes it.
@@ -254,7 +397,10 @@ pub struct SlamOutput {
 ///    stamp: the host records these as the online trajectory. The defaults ignore the
 ///    message;
 /// 4. [`SlamSystem::finish`] — once, after the last message: the final trajectory, optional
-///    map and grid, and events.
+///    map and grid, events and a [`SavedMap`] to localise in later.
+///
+/// In localisation mode (revision 4) [`SlamSystem::localize`] replaces `new`, and after each
+/// pose it returns the host asks [`SlamSystem::status`].
 ///
 /// A panic in any of them is caught inside the plugin and reported as an error of this run.
 pub trait SlamSystem: Sized + Send + 'static {
@@ -275,6 +421,26 @@ pub trait SlamSystem: Sized + Send + 'static {
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError>;
+
+    /// Creates the system in localisation mode, from a map saved earlier (revision 4): its
+    /// own [`SavedMap`]'s bytes, or for a plugin that localises in a 2D grid the host's
+    /// [`GRID_MAP_FORMAT`]. Answer every message as usual, with poses in the saved map's
+    /// frame, and say with [`SlamSystem::status`] whether each is localised. Say
+    /// `can_localize` in the requirements when this is implemented; refuse a format or
+    /// version you cannot read with an error saying so. The default refuses.
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        let _ = (config_toml, rig, start);
+        Err(PluginError(format!(
+            "{} cannot localise in a saved map",
+            Self::NAME
+        )))
+    }
+
+    /// Whether the pose just returned is localised in the map or the system still searches
+    /// (revision 4); asked after every pose returned. The default: localised.
+    fn status(&self) -> PoseStatus {
+        PoseStatus::Localized
+    }
 
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
         let _ = imu;

@@ -13,6 +13,12 @@
  * layout that differs from the host's fails the route check. Non-finite wheel speeds are
  * answered with an error, not integrated.
  *
+ * Revision 4 (localisation in a saved map), so that the door's new calls have a C user: it
+ * saves a map, "odometry-end" version 1, its final x, y and yaw (three little-endian doubles),
+ * and started from such a map (`create_with` with `info->map`) it integrates from the
+ * initial guess (else from the origin), answering VB_POSE_SEARCHING for its first 10 poses
+ * and VB_POSE after; a map of another format, version or size is refused.
+ *
  * Built by host/build.rs for the end-to-end tests: cc -shared -fPIC -ffp-contract=off (and
  * once more with -DC_ODOMETRY_ABI_VERSION=99, a library the host must refuse, and once with
  * -DC_ODOMETRY_REVISION_1, a table of revision 1's size whose later fields must be unread).
@@ -38,7 +44,11 @@ typedef struct {
     long seen;
     double rings; /* the rig's lidar rings (typed rig), 0: unknown */
     long checked; /* messages of other sensors checked */
+    int localizing; /* started from a saved map (revision 4) */
+    unsigned char saved[24]; /* the map finish saves: final x, y, yaw */
 } odometry;
+
+#define SEARCHING_POSES 10
 
 static char create_error[128];
 
@@ -85,8 +95,26 @@ static void *create_with(const vb_create_info *info) {
         snprintf(create_error, sizeof create_error, "c-odometry: the rig has no wheel odometry");
         return NULL;
     }
+    if (info->abi_revision >= 4 && info->map) {
+        if (!info->map_format || strcmp(info->map_format, "odometry-end") != 0 ||
+            info->map_format_version != 1 || info->map_len != 24) {
+            snprintf(create_error, sizeof create_error,
+                     "c-odometry: not an odometry-end version 1 map of 24 bytes");
+            return NULL;
+        }
+    }
     odometry *o = create(info->config_toml, info->rig_toml);
     if (o) vb_sensor_intrinsic(vb_rig_first(info->rig, "lidar"), "rings", &o->rings);
+    if (o && info->abi_revision >= 4 && info->map) {
+        o->localizing = 1;
+        if (info->initial_guess) {
+            const vb_pose *g = &info->initial_guess->map_from_base;
+            const double *q = g->rotation_xyzw;
+            o->x = g->translation[0];
+            o->y = g->translation[1];
+            o->yaw = atan2(2.0 * (q[3] * q[2] + q[0] * q[1]), 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]));
+        }
+    }
     return o;
 }
 
@@ -94,8 +122,8 @@ static const char *requirements_for(const char *config_toml) {
     const char *sensors = value_of(config_toml, "sensors");
     if (sensors && strncmp(sensors, "all", 3) == 0)
         return "sensors = [\"wheel_odometry\", \"imu\", \"lidar\", \"scan2d\", \"rgbd\"]\n"
-               "mode = \"online\"\n";
-    return "sensors = [\"wheel_odometry\"]\nmode = \"online\"\n";
+               "mode = \"online\"\ncan_localize = true\n";
+    return "sensors = [\"wheel_odometry\"]\nmode = \"online\"\ncan_localize = true\n";
 }
 
 static int32_t refuse(odometry *o, const char *what, int64_t stamp_ns) {
@@ -220,7 +248,7 @@ static int32_t on_wheel_odometry(void *self, const vb_wheel_odometry *m, vb_pose
     }
     o->poses[o->n++] = pose_of(o, m->stamp_ns);
     *estimate = o->poses[o->n - 1];
-    return VB_POSE;
+    return o->localizing && o->n <= SEARCHING_POSES ? VB_POSE_SEARCHING : VB_POSE;
 }
 
 static int32_t finish(void *self, vb_output *out) {
@@ -247,6 +275,12 @@ static int32_t finish(void *self, vb_output *out) {
     out->n_map_points = o->n < 3 ? o->n : 3;
     out->grid = NULL;
     out->events_toml = o->events;
+    double end[3] = {o->x, o->y, o->yaw};
+    memcpy(o->saved, end, sizeof end); /* little-endian hosts only, as the tests run */
+    out->saved_map = o->saved;
+    out->saved_map_len = sizeof o->saved;
+    out->saved_map_format = "odometry-end";
+    out->saved_map_version = 1;
     return 0;
 }
 
@@ -268,7 +302,7 @@ static const vb_plugin table = {
     .struct_size = C_ODOMETRY_TABLE_SIZE,
     .name = "c-odometry",
     .version = "0.1.0",
-    .requirements_toml = "sensors = [\"wheel_odometry\"]\nmode = \"online\"\n",
+    .requirements_toml = "sensors = [\"wheel_odometry\"]\nmode = \"online\"\ncan_localize = true\n",
     .create = create,
     .destroy = destroy,
     .last_error = last_error,

@@ -70,6 +70,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 queue_size: p.queue_size.clone(),
                 drops: None,
                 base_dir: Some(p.base_dir.clone()),
+                localize: None,
             });
         }
     }

@@ -61,6 +61,14 @@ pub struct RunArgs {
 }
 
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    run_with(args, None)
+}
+
+/// `vinebench run`, or with `localize` a localisation run (`vinebench localize`).
+pub fn run_with(
+    args: &RunArgs,
+    localize: Option<crate::runner::LocalizeSpec>,
+) -> anyhow::Result<()> {
     let max_time_s = args.sim.max_time_s()?;
     let dirs = crate::plugins::search_path(&args.plugin_dirs);
     let path = crate::plugins::resolve(&args.plugin, &dirs)?;
@@ -126,6 +134,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             queue_size,
             drops: args.drops.clone(),
             base_dir: Some(base_dir),
+            localize,
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(args.timeout_s),

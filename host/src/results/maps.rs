@@ -72,7 +72,10 @@ fn parse_ply(bytes: &[u8]) -> anyhow::Result<Vec<[f32; 3]>> {
 }
 
 /// map_server's trinary image: occupied black (0), free white (254), unknown grey (205),
-/// rows from the top, so the grid's last row comes first.
+/// rows from the top, so the grid's last row comes first; the YAML's thresholds are
+/// map_saver's (`occupied_thresh: 0.65`, `free_thresh: 0.196`), under which map_server reads
+/// the three greys back as they were written (205 is p = 0.196 08, just above the free
+/// threshold: unknown).
 pub fn write_grid(pgm: &Path, yaml: &Path, grid: &OccupancyGrid) -> anyhow::Result<()> {
     anyhow::ensure!(
         grid.cells.len() == grid.width as usize * grid.height as usize,
@@ -103,15 +106,156 @@ pub fn write_grid(pgm: &Path, yaml: &Path, grid: &OccupancyGrid) -> anyhow::Resu
     let mut f = std::fs::File::create(yaml).with_context(|| yaml.display().to_string())?;
     writeln!(
         f,
-        "image: {image}\nresolution: {}\norigin: [{}, {}, {}]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25",
+        "image: {image}\nresolution: {}\norigin: [{}, {}, {}]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196",
         grid.resolution_m, grid.origin[0], grid.origin[1], grid.origin[2]
     )?;
     Ok(())
 }
 
+/// A map_server map: the `grid.yaml` at `yaml` and the image it names (binary PGM, P5),
+/// read as map_server's trinary mode does: occupancy `p = (255 - value) / 255` (`negate: 1`
+/// flips it), occupied (100) above `occupied_thresh`, free (0) below `free_thresh`, unknown
+/// (-1) between; the image's first row is the grid's last.
+pub fn read_grid(yaml: &Path) -> anyhow::Result<OccupancyGrid> {
+    let name = yaml.display();
+    let text = std::fs::read_to_string(yaml).with_context(|| name.to_string())?;
+    let mut image = None;
+    let mut resolution = None;
+    let mut origin = None;
+    let (mut negate, mut occupied, mut free) = (false, 0.65, 0.196);
+    for line in text.lines() {
+        let Some((key, value)) = line.split_once(':') else {
+            continue;
+        };
+        let value = value.trim();
+        let number = |v: &str| -> anyhow::Result<f64> {
+            v.trim()
+                .parse::<f64>()
+                .with_context(|| format!("{name}: {} is not a number: {v:?}", key.trim()))
+        };
+        match key.trim() {
+            "image" => image = Some(value.trim_matches(['"', '\'']).to_owned()),
+            "resolution" => resolution = Some(number(value)?),
+            "origin" => {
+                let inner = value.trim_start_matches('[').trim_end_matches(']');
+                let v: Vec<f64> = inner.split(',').map(number).collect::<Result<_, _>>()?;
+                anyhow::ensure!(v.len() == 3, "{name}: origin is [x, y, yaw], got {value}");
+                origin = Some([v[0], v[1], v[2]]);
+            }
+            "negate" => negate = number(value)? != 0.0,
+            "occupied_thresh" => occupied = number(value)?,
+            "free_thresh" => free = number(value)?,
+            _ => {}
+        }
+    }
+    let (Some(image), Some(resolution_m), Some(origin)) = (image, resolution, origin) else {
+        anyhow::bail!("{name}: a map_server map needs image, resolution and origin");
+    };
+    anyhow::ensure!(
+        resolution_m.is_finite() && resolution_m > 0.0 && origin.iter().all(|v| v.is_finite()),
+        "{name}: resolution must be positive and origin finite"
+    );
+    let pgm = yaml.parent().unwrap_or(Path::new(".")).join(&image);
+    let bytes = std::fs::read(&pgm).with_context(|| pgm.display().to_string())?;
+    let (width, height, pixels) =
+        parse_pgm(&bytes).map_err(|why| anyhow::anyhow!("{}: {why}", pgm.display()))?;
+    let mut cells = Vec::with_capacity(pixels.len());
+    for row in (0..height).rev() {
+        for &v in &pixels[row * width..(row + 1) * width] {
+            let mut p = (255.0 - f64::from(v)) / 255.0;
+            if negate {
+                p = 1.0 - p;
+            }
+            cells.push(if p > occupied {
+                100
+            } else if p < free {
+                0
+            } else {
+                -1
+            });
+        }
+    }
+    Ok(OccupancyGrid {
+        resolution_m,
+        origin,
+        width: width as u32,
+        height: height as u32,
+        cells,
+    })
+}
+
+/// Width, height and pixels of a binary 8-bit PGM (P5, maxval 255, `#` comments).
+fn parse_pgm(bytes: &[u8]) -> Result<(usize, usize, &[u8]), String> {
+    let mut at = 0;
+    let mut token = || -> Result<&[u8], String> {
+        loop {
+            while at < bytes.len() && bytes[at].is_ascii_whitespace() {
+                at += 1;
+            }
+            if at < bytes.len() && bytes[at] == b'#' {
+                while at < bytes.len() && bytes[at] != b'\n' {
+                    at += 1;
+                }
+                continue;
+            }
+            break;
+        }
+        let start = at;
+        while at < bytes.len() && !bytes[at].is_ascii_whitespace() {
+            at += 1;
+        }
+        (start < at)
+            .then(|| &bytes[start..at])
+            .ok_or_else(|| "the PGM header ends early".to_owned())
+    };
+    if token()? != b"P5" {
+        return Err("not a binary PGM (P5)".into());
+    }
+    let mut number = || -> Result<usize, String> {
+        std::str::from_utf8(token()?)
+            .ok()
+            .and_then(|t| t.parse().ok())
+            .ok_or_else(|| "a PGM header field is not a number".to_owned())
+    };
+    let (width, height, maxval) = (number()?, number()?, number()?);
+    if maxval != 255 {
+        return Err(format!("maxval {maxval}: only 8-bit PGM (255) is read"));
+    }
+    let body = &bytes[(at + 1).min(bytes.len())..];
+    let n = width
+        .checked_mul(height)
+        .ok_or_else(|| "impossibly large".to_owned())?;
+    if body.len() != n {
+        return Err(format!(
+            "{width} x {height} pixels, but {} bytes of pixels",
+            body.len()
+        ));
+    }
+    Ok((width, height, body))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A grid written as map_server's trinary image reads back cell for cell.
+    #[test]
+    fn a_written_grid_reads_back() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let grid = OccupancyGrid {
+            resolution_m: 0.05,
+            origin: [-3.5, 2.25, 0.0],
+            width: 3,
+            height: 2,
+            cells: vec![0, 100, -1, 100, 0, 0],
+        };
+        let (pgm, yaml) = (dir.path().join("grid.pgm"), dir.path().join("grid.yaml"));
+        write_grid(&pgm, &yaml, &grid).expect("write");
+        assert_eq!(read_grid(&yaml).expect("read"), grid);
+        std::fs::write(&pgm, b"P5\n3 2\n255\n\x00").expect("write");
+        let e = read_grid(&yaml).expect_err("short").to_string();
+        assert!(e.contains("grid.pgm: 3 x 2 pixels, but 1 bytes"), "{e}");
+    }
 
     #[test]
     fn a_written_ply_reads_back_and_a_damaged_one_names_the_file() {

@@ -19,6 +19,7 @@
 
 pub mod aggregate;
 mod folder;
+pub mod map_file;
 mod maps;
 mod run;
 
@@ -26,10 +27,11 @@ pub use folder::{
     MARKER, PARTIAL, SWEEP_MARKER, Staging, folder_name, is_sweep_folder, link_latest,
     partial_path, write_atomic,
 };
-pub use maps::{read_ply, write_grid, write_ply};
+pub use maps::{read_grid, read_ply, write_grid, write_ply};
 pub use run::{
-    ApeSeries, FramePair, Frames, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency, Metrics,
-    PairKind, RunFolder, RunOutcome, RunStatus, Timing, Transform, write_json,
+    ApeSeries, FramePair, Frames, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency,
+    LocalizationMetrics, Metrics, PairKind, RunFolder, RunOutcome, RunStatus, Timing, Transform,
+    write_json,
 };
 
 /// File names inside a run folder.
@@ -71,6 +73,14 @@ pub mod files {
     /// The messages a paced run's bounded queues dropped (`topic,stamp_ns`), written when it
     /// had `queue_size` or given drops.
     pub const DROPPED: &str = "dropped.csv";
+    /// The map the plugin saved to localise in later (`results::map_file`).
+    pub const SAVED_MAP: &str = "map.bin";
+    /// A localisation run's order (`runner::LocalizeSpec`): which map, from which mapping
+    /// run, the initial guess and the kidnapping.
+    pub const LOCALIZATION: &str = "localization.toml";
+    /// The status of every online pose of a localisation run (`stamp_ns,status`, row for
+    /// row with `online.tum`).
+    pub const POSE_STATUS: &str = "pose_status.csv";
 }
 
 /// Hex SHA-256 of some bytes, first 16 digits (64 bits: no collision in any sweep).

@@ -79,6 +79,9 @@ pub struct Metrics {
     /// The final map's wrong joins and revisits (`joins.json` holds the episodes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joins: Option<JoinCounts>,
+    /// A localisation run's judgement (`vinebench localize`); absent for a mapping run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub localization: Option<LocalizationMetrics>,
 }
 
 /// A similarity transform as `metrics.json` holds it: `p' = s R p + t`.
@@ -99,6 +102,35 @@ impl From<&eval::Sim3> for Transform {
             scale: t.scale,
         }
     }
+}
+
+impl Transform {
+    /// The transform, back as the evaluation's type (the rotation normalised).
+    pub fn to_sim3(&self) -> eval::Sim3 {
+        let [x, y, z, w] = self.rotation_xyzw;
+        eval::Sim3 {
+            rotation: nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                w, x, y, z,
+            )),
+            translation: self.translation_m.into(),
+            scale: self.scale,
+        }
+    }
+}
+
+/// A localisation run's judgement (`eval::evaluate_localization`) with what it cost to start:
+/// the map's size and the plugin's start time from it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocalizationMetrics {
+    #[serde(flatten)]
+    pub report: eval::LocalizationReport,
+    /// The map handed to the plugin, bytes.
+    pub map_bytes: u64,
+    /// How long the plugin took to start from it, seconds.
+    pub load_s: f64,
+    /// Whether the map's frame was put in the world by a mapping run's alignment (`false`:
+    /// the surveyed grid, in the world frame).
+    pub carried_alignment: bool,
 }
 
 /// The final map's episodes counted (`eval::wrong_joins`, default criteria).

@@ -78,6 +78,7 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         sim3_scale,
         drift,
         joins: Some(joins.counts()),
+        localization: localization(run, &gt, &options)?,
     };
     run.write_metrics(&metrics)?;
     run.write_ape(&ApeSeries {
@@ -98,6 +99,84 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         &final_.transform,
         &judged,
     )
+}
+
+/// A localisation run's judgement (`runner::localize`): its online poses and their statuses
+/// against its ground truth, in the map's frame put in the world by the mapping run's own
+/// alignment (the surveyed grid: the world's frame), judged against the mapping run's
+/// estimate too, with the lanes of the run's world. `None` for a mapping run.
+fn localization(
+    run: &RunFolder,
+    gt: &Trajectory,
+    options: &ApeOptions,
+) -> anyhow::Result<Option<crate::results::LocalizationMetrics>> {
+    let Some((spec, map_bytes, load_s)) = super::localize::read_spec(run)? else {
+        return Ok(None);
+    };
+    let online = run.read_online()?.unwrap_or(Trajectory {
+        stamps: Vec::new(),
+        poses: Vec::new(),
+    });
+    let statuses = super::localize::read_statuses(&run.path(files::POSE_STATUS))?;
+    anyhow::ensure!(
+        statuses.len() == online.len(),
+        "{}: {} statuses for {} online poses",
+        run.path(files::POSE_STATUS).display(),
+        statuses.len(),
+        online.len()
+    );
+    let localized = statuses
+        .iter()
+        .map(|(_, s)| *s == plugin_api::PoseStatus::Localized)
+        .collect();
+    let (world_from_map, reference) = match &spec.mapping_run {
+        None => (Sim3::identity(), None),
+        Some(dir) => {
+            let mapping = RunFolder::new(dir);
+            let transform = mapping
+                .read_metrics()?
+                .alignment_transform
+                .with_context(|| {
+                    format!(
+                        "{}: the mapping run's metrics.json holds no alignment transform; evaluate it again",
+                        dir.display()
+                    )
+                })?;
+            let pairs = options
+                .pairing
+                .pair(&mapping.read_groundtruth()?, &mapping.read_estimate()?)?;
+            (transform.to_sim3(), Some(pairs))
+        }
+    };
+    let world = sim::SimConfig::load(Some(&run.path(files::WORLD)))?;
+    let lanes = super::localize::lanes(&world.vineyard);
+    let report = eval::evaluate_localization(
+        gt,
+        &eval::LocalizedTrajectory {
+            trajectory: online,
+            localized,
+        },
+        &world_from_map,
+        reference.as_ref().map(|p| eval::MapReference {
+            truth: &p.reference,
+            estimate: &p.estimate,
+        }),
+        lanes.as_ref(),
+        spec.kidnap.map(|k| k.at_s),
+        &eval::LocalizationCriteria::default(),
+    )
+    .with_context(|| {
+        format!(
+            "judging the localisation of {}",
+            run.path(files::ONLINE).display()
+        )
+    })?;
+    Ok(Some(crate::results::LocalizationMetrics {
+        report,
+        map_bytes,
+        load_s,
+        carried_alignment: spec.mapping_run.is_some(),
+    }))
 }
 
 /// The final map's episodes with the wrong joins no accepted loop of `judged` explains

@@ -46,6 +46,9 @@ pub struct Job {
     /// a run replayed with another's drops.
     #[serde(default)]
     pub drops: Option<PathBuf>,
+    /// Start the plugin in localisation mode from a saved map ([`super::LocalizeSpec`]).
+    #[serde(default)]
+    pub localize: Option<super::LocalizeSpec>,
 }
 
 /// The topics a queue may be bounded on: every sensor message the plugin is fed.

@@ -7,6 +7,7 @@ pub mod feed;
 mod frames;
 pub mod interrupt;
 pub mod job;
+pub mod localize;
 mod loops;
 mod queue;
 mod record;
@@ -24,6 +25,7 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 pub use evaluate::evaluate;
 pub use job::{Job, Pace, QueueSize, check_max_time, route_end_ns};
+pub use localize::{GuessSpec, Kidnap, LocalizeSpec, MapSource};
 pub use queue::read_drops;
 
 use crate::results::{RunFolder, RunOutcome, RunStatus, files};
@@ -43,6 +45,8 @@ pub struct PlannedRun {
     /// The folder the plugin's relative paths are relative to (the bench file's): handed
     /// to the worker as `VINEBENCH_BENCH_DIR`. `None`: the current folder.
     pub base_dir: Option<PathBuf>,
+    /// A localisation run's map and options (`vinebench localize`); `None`: a mapping run.
+    pub localize: Option<LocalizeSpec>,
 }
 
 /// A resolved matrix.
@@ -251,6 +255,7 @@ fn run_all(
             pace: run.pace,
             queue_size: run.queue_size.clone(),
             drops: run.drops.as_ref().map(std::path::absolute).transpose()?,
+            localize: run.localize.clone(),
         };
         crate::results::write_json(&dir.join(files::JOB), &job)?;
         let bar = bars.add(ProgressBar::new(1000).with_style(style.clone()));

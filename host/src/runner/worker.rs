@@ -95,9 +95,35 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     let rig = crate::rig::rig(&config);
     write_run_toml(job, &config, &plugin, &requirements)?;
     write_placed(job, &config, &sim)?;
-    let mut instance = plugin
-        .create(&job.params_toml, &rig)
-        .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?;
+    let mut instance = match &job.localize {
+        None => plugin
+            .create(&job.params_toml, &rig)
+            .map_err(|e| anyhow!("plugin {} failed to start: {e}", plugin.name))?,
+        Some(spec) => {
+            let (map, format, version) =
+                super::localize::map_bytes(spec, &plugin.name, &config, sim.scene().world)?;
+            let start = plugin_api::MapStart {
+                map: &map,
+                format: &format,
+                format_version: version,
+                initial_guess: spec.initial_guess(),
+            };
+            let loading = Instant::now();
+            let instance = plugin
+                .create_localizing(&job.params_toml, &rig, &start)
+                .map_err(|e| {
+                    let from = match &spec.map {
+                        super::MapSource::Saved { path } => path.display().to_string(),
+                        super::MapSource::Grid { yaml } => yaml.display().to_string(),
+                        super::MapSource::Surveyed => "the surveyed grid".to_owned(),
+                    };
+                    anyhow!("{from}: plugin {} cannot localise in it: {e}", plugin.name)
+                })?;
+            write_localization(job, spec, map.len(), loading.elapsed().as_secs_f64())?;
+            instance
+        }
+    };
+    let mut statuses = Vec::new();
 
     let total_ns = super::job::route_end_ns(sim.duration_ns(), job.max_time_s)?;
     let mut groundtruth = Vec::new();
@@ -121,7 +147,9 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     // The stream is in time order: a route limit cuts it, as `simulate --max-time` does.
     // Without one the stream is fed whole, as before.
     let cut = job.max_time_s.is_some();
-    let source = source.take_while(move |m| !cut || m.stamp_ns() <= total_ns);
+    let kidnap = job.localize.as_ref().and_then(|l| l.kidnap);
+    let source = super::localize::kidnapped(source, kidnap)
+        .take_while(move |m| !cut || m.stamp_ns() <= total_ns);
     if let Some(q) = &job.queue_size {
         q.check(job.pace).map_err(|why| anyhow!("{why}"))?;
     }
@@ -188,6 +216,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
             if let Some(pose) = returned {
                 check(&pose, "online pose")?;
                 online.push(pose);
+                statuses.push(instance.status());
             }
             if stamp >= next_progress {
                 writeln!(stdout, "progress {stamp} {total_ns}").ok();
@@ -227,6 +256,18 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         );
     }
     write_outputs(&job.out_dir, &groundtruth, &online, &output)?;
+    if let Some(saved) = &output.saved_map {
+        crate::results::map_file::write_map(
+            &job.out_dir.join(files::SAVED_MAP),
+            &plugin.name,
+            &plugin.version,
+            saved,
+        )?;
+    }
+    if job.localize.is_some() {
+        let stamps: Vec<i64> = online.iter().map(|p| p.stamp_ns).collect();
+        super::localize::write_statuses(&job.out_dir, &stamps, &statuses)?;
+    }
     let wall = started.elapsed().as_secs_f64();
     // The simulated time fed: the route up to its limit.
     let simulated = total_ns as f64 * 1e-9;
@@ -411,6 +452,21 @@ fn write_run_toml(
     // this is what it was.
     let path = job.out_dir.join(files::WORLD);
     std::fs::write(&path, config.to_toml_string()).with_context(|| path.display().to_string())
+}
+
+/// `localization.toml`: the run's order, with the map's size and how long the plugin took
+/// to start from it.
+fn write_localization(
+    job: &Job,
+    spec: &super::LocalizeSpec,
+    map_bytes: usize,
+    load_s: f64,
+) -> anyhow::Result<()> {
+    let mut doc = toml::Table::try_from(spec)?;
+    doc.insert("map_bytes".into(), toml::Value::Integer(map_bytes as i64));
+    doc.insert("load_s".into(), toml::Value::Float(load_s));
+    let path = job.out_dir.join(files::LOCALIZATION);
+    std::fs::write(&path, toml::to_string(&doc)?).with_context(|| path.display().to_string())
 }
 
 /// `placed.toml`: where each sensor with a `mount_error` really sat in this run.

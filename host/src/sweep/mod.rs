@@ -501,6 +501,7 @@ impl Sweep {
                             queue_size: c.queue_size.clone(),
                             drops: None,
                             base_dir: c.base_dir.clone(),
+                            localize: None,
                         })
                         .collect(),
                     jobs,

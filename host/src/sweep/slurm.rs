@@ -215,6 +215,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
             queue_size: cell.queue_size.clone(),
             drops: None,
             base_dir: cell.base_dir.clone(),
+            localize: None,
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(tasks.timeout_s),

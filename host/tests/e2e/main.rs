@@ -11,6 +11,7 @@ mod conformance;
 mod dataset;
 mod joins;
 mod lio_sam;
+mod localize;
 mod orbslam2;
 mod python;
 mod report;

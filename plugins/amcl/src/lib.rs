@@ -17,13 +17,14 @@
 //!
 //! [`grid`] holds the map and its distance field, [`motion`] the odometry model, [`filter`]
 //! the particle filter and its estimate, [`scan`] the two 2D lidars merged into one scan,
-//! [`config`] the parameters.
+//! [`config`] the parameters, [`system`] the plugin.
 
 pub mod config;
 pub mod filter;
 pub mod grid;
 pub mod motion;
 pub mod scan;
+pub mod system;
 
 /// A pose in the plane: position (metres) and heading (radians, in (-π, π]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

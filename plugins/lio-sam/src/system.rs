@@ -593,6 +593,7 @@ impl SlamSystem for LioSam {
             map: Some(map),
             grid: None,
             events: std::mem::take(&mut self.events),
+            saved_map: None,
         })
     }
 }

@@ -318,6 +318,7 @@ impl SlamSystem for OrbSlam2 {
             map: Some(map_points),
             grid: None,
             events: std::mem::take(&mut self.events),
+            saved_map: None,
         })
     }
 }

@@ -29,6 +29,8 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
    of the host's buffers, valid during the call only: keep copies, not the arrays (a class
    that keeps one fails its run with a line saying so).
 4. `finish()`: a dict with `trajectory` (a list of `(stamp_ns, map_from_base)`), optional
+   `saved_map` (revision 4: `{"format": str, "version": int, "bytes": bytes}`, the map to
+   localise in later, which the host keeps as the run's `map.bin`), optional
    `events` (dicts with `stamp_ns`, `kind` — "loop_closure_accepted",
    "loop_closure_rejected", "tracking_lost" or "tracking_recovered" — `detail`, and for a
    loop closure `loop_stamps_ns` = [current, matched] and optionally `loop_relative_pose`,
@@ -37,6 +39,13 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
    pixels of the colour frames at the two stamps, which the report draws), optional `map` ((N, 3)
    points) and optional `grid` ({"resolution": metres, "origin": (x, y, yaw), "cells": an
    (rows, columns) array of -1 unknown or 0..100 occupancy, row 0 at the origin}).
+
+Localisation in a saved map (revision 4): a class whose `requirements` answer a dict with
+`"can_localize": True` may be started by `localize(params, rig, start)` (static) instead of
+`__init__`, `start` a dict of the saved map's `bytes`, `format` and `version` and the
+`initial_guess` (None: the start is unknown; else `{"map_from_base": 4x4, "sigma_xy": m,
+"sigma_yaw": rad}`). Its message methods then answer `(stamp_ns, map_from_base, status)`,
+status "localized" or "searching" (a pair means "localized").
 
 Times are integer nanoseconds, lengths metres, the base frame x forward, z up. An exception
 fails the run with its `Type: message` line, and its whole traceback goes to the run's
@@ -56,7 +65,7 @@ class SlamSystem:
     is optional): every method the bridge may call, with what it does when absent."""
 
     #: The contract revision this class was written for (docs/plugin-contract.md).
-    API_REVISION = 3
+    API_REVISION = 4
 
     @staticmethod
     def requirements(params):
@@ -76,21 +85,42 @@ class SlamSystem:
 
 
 class WheelOdometry(SlamSystem):
-    """Dead reckoning from the wheel speeds (midpoint rule), the smallest useful system."""
+    """Dead reckoning from the wheel speeds (midpoint rule), the smallest useful system.
+
+    It also shows the localisation calls (revision 4), as the C door's `c_odometry.c` does:
+    it saves its final x, y and yaw as an "odometry-end" version 1 map, and started from one
+    it integrates from the initial guess (else the origin), "searching" for its first 10
+    poses."""
+
+    SEARCHING_POSES = 10
 
     @staticmethod
     def requirements(params):
-        return ["wheel_odometry"]
+        return {"sensors": ["wheel_odometry"], "can_localize": True}
 
     def __init__(self, params, rig):
         self.state = None  # (stamp_ns, x, y, yaw)
         self.trajectory = []
+        self.localizing = False
+        self.start = (0.0, 0.0, 0.0)
+
+    @staticmethod
+    def localize(params, rig, start):
+        if (start["format"], start["version"], len(start["bytes"])) != ("odometry-end", 1, 24):
+            raise ValueError("not an odometry-end version 1 map of 24 bytes")
+        system = WheelOdometry(params, rig)
+        system.localizing = True
+        guess = start["initial_guess"]
+        if guess is not None:
+            m = guess["map_from_base"]
+            system.start = (m[0, 3], m[1, 3], math.atan2(m[1, 0], m[0, 0]))
+        return system
 
     def on_wheel_odometry(self, odom):
         if not (math.isfinite(odom.linear) and math.isfinite(odom.angular)):
             raise ValueError(f"non-finite wheel speeds at {odom.stamp_ns} ns")
         if self.state is None:
-            self.state = (odom.stamp_ns, 0.0, 0.0, 0.0)
+            self.state = (odom.stamp_ns, *self.start)
         else:
             last, x, y, yaw = self.state
             dt = (odom.stamp_ns - last) * 1e-9
@@ -105,7 +135,17 @@ class WheelOdometry(SlamSystem):
         pose[:2, :2] = [[c, -s], [s, c]]
         pose[:2, 3] = [x, y]
         self.trajectory.append((stamp, pose))
+        if self.localizing:
+            searching = len(self.trajectory) <= self.SEARCHING_POSES
+            return stamp, pose, "searching" if searching else "localized"
         return stamp, pose
 
     def finish(self):
-        return {"trajectory": self.trajectory}
+        if self.state is None:
+            return {"trajectory": self.trajectory}
+        _, x, y, yaw = self.state
+        end = np.array([x, y, yaw], dtype="<f8").tobytes()
+        return {
+            "trajectory": self.trajectory,
+            "saved_map": {"format": "odometry-end", "version": 1, "bytes": end},
+        }

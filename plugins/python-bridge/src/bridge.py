@@ -125,13 +125,20 @@ def load_class(module, name):
 
 
 def requirements(cls, params_toml):
-    """(sensor kinds, mode) from the class's `requirements(params)`."""
+    """(sensor kinds, mode, can_localize) from the class's `requirements(params)`."""
     ask = getattr(cls, "requirements", None)
     if ask is None:
         raise TypeError(f"{cls.__name__} has no requirements(params)")
     r = ask(tomllib.loads(params_toml))
+    can_localize = False
     if isinstance(r, dict):
+        unknown = set(r) - {"sensors", "mode", "can_localize"}
+        if unknown:
+            raise ValueError(f"requirements: unknown keys {sorted(unknown)}")
         sensors, mode = r.get("sensors", []), r.get("mode", "online")
+        can_localize = r.get("can_localize", False)
+        if not isinstance(can_localize, bool):
+            raise TypeError(f"requirements: can_localize is True or False, not {can_localize!r}")
     else:
         sensors, mode = r, "online"
     sensors = [str(s) for s in sensors]
@@ -140,32 +147,72 @@ def requirements(cls, params_toml):
             raise ValueError(f"unknown sensor kind {s!r} (one of {', '.join(SENSOR_KINDS)})")
     if mode not in ("online", "offline"):
         raise ValueError(f"mode must be 'online' or 'offline', not {mode!r}")
-    return sensors, mode
+    return sensors, mode, can_localize
 
 
 def create(cls, params_toml, rig_toml):
     return cls(tomllib.loads(params_toml), tomllib.loads(rig_toml))
 
 
-def _pose(value, what):
-    """None, or (stamp_ns, the 12 numbers of a 4x4 or 3x4 transform's top three rows)."""
+def create_localizing(cls, params_toml, rig_toml, map_bytes, map_format, map_version, guess):
+    """The class's `localize(params, rig, start)` (revision 4): `start` is a dict of the saved
+    map's `bytes`, `format` and `version` and the `initial_guess` (None, or a dict of
+    `map_from_base` (4x4), `sigma_xy` (m) and `sigma_yaw` (rad))."""
+    localize = getattr(cls, "localize", None)
+    if localize is None:
+        raise TypeError(f"{cls.__name__} has no localize(params, rig, start)")
+    initial_guess = None
+    if guess is not None:
+        rows, sigma_xy, sigma_yaw = guess
+        m = np.eye(4)
+        m[:3, :] = np.asarray(rows, dtype=np.float64).reshape(3, 4)
+        initial_guess = {"map_from_base": m, "sigma_xy": sigma_xy, "sigma_yaw": sigma_yaw}
+    start = {
+        "bytes": bytes(map_bytes),
+        "format": map_format,
+        "version": map_version,
+        "initial_guess": initial_guess,
+    }
+    return localize(tomllib.loads(params_toml), tomllib.loads(rig_toml), start)
+
+
+POSE_STATUSES = ("localized", "searching")
+
+
+def _pose_status(value, what):
+    """None, or (stamp_ns, the 12 numbers of a 4x4 or 3x4 transform's top three rows,
+    status): a message's answer, `(stamp_ns, map_from_base)` or, revision 4,
+    `(stamp_ns, map_from_base, "localized" | "searching")`."""
     if value is None:
         return None
     try:
-        stamp, matrix = value
+        if len(value) == 3:
+            stamp, matrix, status = value
+        else:
+            (stamp, matrix), status = value, "localized"
     except (TypeError, ValueError):
-        raise TypeError(f"{what}: a pose is (stamp_ns, 4x4 map_from_base), got {value!r}") from None
+        raise TypeError(
+            f"{what}: a pose is (stamp_ns, 4x4 map_from_base[, status]), got {value!r}"
+        ) from None
+    if status not in POSE_STATUSES:
+        raise ValueError(f"{what}: a pose's status is 'localized' or 'searching', not {status!r}")
     m = np.asarray(matrix, dtype=np.float64)
     if m.shape not in ((4, 4), (3, 4)):
         raise ValueError(f"{what}: a pose matrix is 4x4 or 3x4, got shape {m.shape}")
-    return (int(stamp), tuple(m[:3, :].ravel().tolist()))
+    return (int(stamp), tuple(m[:3, :].ravel().tolist()), status)
+
+
+def _pose(value, what):
+    """None, or (stamp_ns, the 12 numbers of a 4x4 or 3x4 transform's top three rows)."""
+    p = _pose_status(value, what)
+    return None if p is None else p[:2]
 
 
 def _call(obj, method, message):
     f = getattr(obj, method, None)
     if f is None:
         return None
-    return _pose(f(message), method)
+    return _pose_status(f(message), method)
 
 
 def imu(obj, stamp_ns, sensor, accel, gyro, orientation):
@@ -265,16 +312,36 @@ def _grid(value):
     return (float(value["resolution"]), origin, int(width), int(height), data)
 
 
+def _saved_map(value):
+    """(format, version, bytes) of finish()'s `saved_map` (revision 4), or None."""
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        raise TypeError(f"finish(): saved_map is a dict (format, version, bytes), got {type(value).__name__}")
+    unknown = set(value) - {"format", "version", "bytes"}
+    if unknown:
+        raise ValueError(f"finish(): unknown saved_map keys {sorted(unknown)}")
+    fmt, version, data = value.get("format"), value.get("version"), value.get("bytes")
+    if not isinstance(fmt, str) or not fmt.strip():
+        raise ValueError("finish(): saved_map's format is a non-empty string naming the format")
+    if not isinstance(version, int) or not 0 <= version < 2**32:
+        raise ValueError("finish(): saved_map's version is an int in 0 .. 2**32 - 1")
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise TypeError(f"finish(): saved_map's bytes are bytes, got {type(data).__name__}")
+    return (fmt, version, bytes(data))
+
+
 def finish(obj):
-    """(trajectory, events, map, grid) as plain tuples from the class's finish() dict."""
+    """(trajectory, events, map, grid, saved_map) as plain tuples from the class's finish()
+    dict."""
     out = obj.finish()
     if out is None:
         out = {}
     if not isinstance(out, dict):
         raise TypeError(
-            f"finish() returns a dict (trajectory, events, map, grid), got {type(out).__name__}"
+            f"finish() returns a dict (trajectory, events, map, grid, saved_map), got {type(out).__name__}"
         )
-    unknown = set(out) - {"trajectory", "events", "map", "grid"}
+    unknown = set(out) - {"trajectory", "events", "map", "grid", "saved_map"}
     if unknown:
         raise ValueError(f"finish(): unknown keys {sorted(unknown)}")
     trajectory = []
@@ -303,7 +370,7 @@ def finish(obj):
     points = out.get("map")
     if points is not None:
         points = np.ascontiguousarray(np.asarray(points, dtype="<f4").reshape(-1, 3)).tobytes()
-    return trajectory, events, points, _grid(out.get("grid"))
+    return trajectory, events, points, _grid(out.get("grid")), _saved_map(out.get("saved_map"))
 
 
 def traceback_text(exc):

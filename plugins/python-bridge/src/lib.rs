@@ -42,8 +42,9 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, Mode, OccupancyGrid, PluginError, PointCloud, Pose,
-    Requirements, RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry, export_plugin,
+    Event, EventKind, Imu, LaserScan, MapStart, Mode, OccupancyGrid, PluginError, PointCloud, Pose,
+    PoseStatus, Requirements, RgbdFrame, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
+    WheelOdometry, export_plugin,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
@@ -212,6 +213,8 @@ pub struct PythonPlugin {
     name: String,
     shim: Py<PyAny>,
     system: Py<PyAny>,
+    /// The status of the pose last returned (revision 4).
+    status: PoseStatus,
 }
 
 /// A host buffer lent to Python for one call: a read-only buffer-protocol object that
@@ -372,12 +375,16 @@ impl PythonPlugin {
                     .shim
                     .bind(py)
                     .call_method1(method, PyTuple::new(py, all)?)?;
-                out.extract::<Option<(i64, [f64; 12])>>()
+                out.extract::<Option<(i64, [f64; 12], String)>>()
             })();
             let released = views.release(py, method);
             let value = result.map_err(|e| fail(python_embed::logged_error_line(py, &e)))?;
             released.map_err(fail)?;
-            pose_from(value).map_err(|e| fail(format!("{method}: {e}")))
+            if let Some((_, _, status)) = &value {
+                self.status = PoseStatus::from_name(status).map_err(|e| fail(e.0))?;
+            }
+            pose_from(value.map(|(stamp, rows, _)| (stamp, rows)))
+                .map_err(|e| fail(format!("{method}: {e}")))
         })
     }
 }
@@ -394,10 +401,11 @@ impl SlamSystem for PythonPlugin {
 
     fn requirements_for(config_toml: &str) -> Result<Requirements, PluginError> {
         let spec = Spec::parse(config_toml, &base_dir())?;
-        let (sensors, mode): (Vec<String>, String) = with_class(&spec, |_, shim, class| {
-            shim.call_method1("requirements", (class, &spec.params_toml))?
-                .extract()
-        })?;
+        let (sensors, mode, can_localize): (Vec<String>, String, bool) =
+            with_class(&spec, |_, shim, class| {
+                shim.call_method1("requirements", (class, &spec.params_toml))?
+                    .extract()
+            })?;
         let sensors = sensors
             .iter()
             .map(|s| {
@@ -412,7 +420,11 @@ impl SlamSystem for PythonPlugin {
         } else {
             Mode::Online
         };
-        Ok(Requirements { sensors, mode })
+        Ok(Requirements {
+            sensors,
+            mode,
+            can_localize,
+        })
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
@@ -425,7 +437,46 @@ impl SlamSystem for PythonPlugin {
             name: spec.name(),
             shim,
             system,
+            status: PoseStatus::Localized,
         })
+    }
+
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        let spec = Spec::parse(config_toml, &base_dir())?;
+        let guess = start.initial_guess.map(|g| {
+            let m = g
+                .map_from_base
+                .isometry()
+                .unwrap_or_else(Isometry3::identity)
+                .to_homogeneous();
+            let rows: [f64; 12] = std::array::from_fn(|i| m[(i / 4, i % 4)]);
+            (rows, g.sigma_xy_m, g.sigma_yaw_rad)
+        });
+        let (shim, system) = with_class(&spec, |py, shim, class| {
+            let system = shim.call_method1(
+                "create_localizing",
+                (
+                    class,
+                    &spec.params_toml,
+                    rig.to_toml(),
+                    PyBytes::new(py, start.map),
+                    start.format,
+                    start.format_version,
+                    guess,
+                ),
+            )?;
+            Ok((shim.clone().unbind(), system.unbind()))
+        })?;
+        Ok(Self {
+            name: spec.name(),
+            shim,
+            system,
+            status: PoseStatus::Searching,
+        })
+    }
+
+    fn status(&self) -> PoseStatus {
+        self.status
     }
 
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
@@ -520,8 +571,14 @@ impl SlamSystem for PythonPlugin {
                 .shim
                 .bind(py)
                 .call_method1("finish", (self.system.bind(py),))?;
-            let (t, e, m, g): (_, _, Option<Bound<'_, PyBytes>>, Option<Bound<'_, PyTuple>>) =
-                out.extract()?;
+            #[allow(clippy::type_complexity)]
+            let (t, e, m, g, saved): (
+                _,
+                _,
+                Option<Bound<'_, PyBytes>>,
+                Option<Bound<'_, PyTuple>>,
+                Option<(String, u32, Bound<'_, PyBytes>)>,
+            ) = out.extract()?;
             let grid = g
                 .map(|g| {
                     let (resolution, origin, width, height, cells): (
@@ -534,7 +591,12 @@ impl SlamSystem for PythonPlugin {
                     Ok::<_, PyErr>((resolution, origin, width, height, cells.as_bytes().to_vec()))
                 })
                 .transpose()?;
-            Ok::<_, PyErr>((t, e, m.map(|b| b.as_bytes().to_vec()), grid))
+            let saved = saved.map(|(format, version, bytes)| SavedMap {
+                format,
+                version,
+                bytes: bytes.as_bytes().to_vec(),
+            });
+            Ok::<_, PyErr>((t, e, m.map(|b| b.as_bytes().to_vec()), grid, saved))
         })
         .map_err(|e| Python::attach(|py| fail(python_embed::logged_error_line(py, &e))))?;
         output_from_python(finished).map_err(|e| fail(format!("finish: {e}")))
@@ -549,18 +611,22 @@ type Grid = Option<(f64, (f64, f64, f64), u32, u32, Vec<u8>)>;
 /// A loop's matched keypoints as the bridge hands them over: little-endian f32 bytes, four
 /// a match.
 type Matches = Option<Vec<u8>>;
-/// What `bridge.py`'s `finish` returns, extracted: trajectory, events, map bytes, grid.
+/// What `bridge.py`'s `finish` returns, extracted: trajectory, events, map bytes, grid,
+/// saved map.
 type Finished = (
     Vec<Option<(i64, [f64; 12])>>,
     Vec<(i64, String, String, Option<(i64, i64)>, Relative, Matches)>,
     Option<Vec<u8>>,
     Grid,
+    Option<SavedMap>,
 );
 
 /// The Python door's output in the host's types, checked: every pose a finite rotation,
 /// every event kind in the registry and every relative pose finite with a unit quaternion,
 /// a grid with a positive resolution, a finite origin and width x height cells.
-fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamOutput, String> {
+fn output_from_python(
+    (trajectory, events, map, grid, saved_map): Finished,
+) -> Result<SlamOutput, String> {
     let trajectory = trajectory
         .into_iter()
         .map(|p| {
@@ -656,11 +722,17 @@ fn output_from_python((trajectory, events, map, grid): Finished) -> Result<SlamO
             })
         })
         .transpose()?;
+    if let Some(saved) = &saved_map
+        && saved.format.trim().is_empty()
+    {
+        return Err("the saved map's format is empty".to_owned());
+    }
     Ok(SlamOutput {
         trajectory,
         map,
         grid,
         events,
+        saved_map,
     })
 }
 
@@ -725,7 +797,12 @@ pub fn fuzz_python_output(data: &[u8]) {
         .map(|_| (f64v().to_bits() & 0xff) as u8)
         .collect();
     let grid = Some((f64v(), (f64v(), f64v(), f64v()), w, h, cells));
-    let _ = output_from_python((poses, events, map, grid));
+    let saved = (f64v().to_bits() % 3 != 0).then(|| SavedMap {
+        format: ["fmt", "", " "][(f64v().to_bits() % 3) as usize].to_owned(),
+        version: (f64v().to_bits() & 0xffff) as u32,
+        bytes: vec![(f64v().to_bits() & 0xff) as u8; (f64v().to_bits() % 8) as usize],
+    });
+    let _ = output_from_python((poses, events, map, grid, saved));
 }
 
 export_plugin!(PythonPlugin);

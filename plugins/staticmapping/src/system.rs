@@ -217,6 +217,7 @@ impl StaticMapping {
             map: Some(map),
             grid: None,
             events,
+            saved_map: None,
         }
     }
 }
@@ -229,6 +230,7 @@ impl SlamSystem for StaticMapping {
         Requirements {
             sensors: vec![SensorKind::Lidar, SensorKind::Imu],
             mode: Mode::Offline,
+            can_localize: false,
         }
     }
 

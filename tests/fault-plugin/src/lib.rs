@@ -3,13 +3,19 @@
 //! "alloc" | "nan"`, `after = N` (the message at which it strikes, default 20). Until then
 //! it behaves as a (poor) odometry that echoes the wheel odometry pose, taking `work_ms`
 //! milliseconds over each message (default 0: a slow system, for bounded queues).
+//!
+//! It is also the Rust door's localisation fixture (revision 4), as `c_odometry.c` is the
+//! C door's and `vinebench_plugin.WheelOdometry` the Python door's: it saves its last echoed
+//! pose as an "odometry-end" version 1 map (x, y, yaw, little-endian f64), and started from
+//! one it echoes the odometry moved to the initial guess (else as is), searching for its
+//! first 10 poses. `fault = "map"` makes it refuse any map.
 
 // The segfault fault writes through a null pointer: that is its whole point.
 #![allow(unsafe_code)]
 
 use plugin_api::{
-    Parameters, PluginError, Pose, Requirements, Rig, SensorKind, SlamOutput, SlamSystem,
-    WheelOdometry, export_plugin,
+    MapStart, Parameters, PluginError, Pose, PoseStatus, Requirements, Rig, SavedMap, SensorKind,
+    SlamOutput, SlamSystem, WheelOdometry, export_plugin,
 };
 use serde::Deserialize;
 
@@ -24,6 +30,8 @@ enum Fault {
     Hang,
     Alloc,
     Nan,
+    /// Refuses any map it is started from.
+    Map,
 }
 
 #[derive(Debug, Deserialize)]
@@ -52,12 +60,17 @@ pub struct FaultPlugin {
     seen: usize,
     trajectory: Vec<Pose>,
     hoard: Vec<Vec<u8>>,
+    /// Localising: `map_from_odom` (the initial guess, or the identity).
+    map_from_odom: Option<nalgebra::Isometry3<f64>>,
 }
+
+/// Poses answered `Searching` when started from a map.
+const SEARCHING_POSES: usize = 10;
 
 impl FaultPlugin {
     fn strike(&mut self) -> Option<Pose> {
         match self.config.fault {
-            Fault::None | Fault::Nan => None,
+            Fault::None | Fault::Nan | Fault::Map => None,
             Fault::Panic => panic!("fault plugin: deliberate panic"),
             Fault::Abort => std::process::abort(),
             Fault::Segfault => {
@@ -81,7 +94,7 @@ impl SlamSystem for FaultPlugin {
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
     fn requirements() -> Requirements {
-        Requirements::online(&[SensorKind::WheelOdometry])
+        Requirements::online(&[SensorKind::WheelOdometry]).localizing()
     }
 
     fn new(config_toml: &str, _rig: &Rig) -> Result<Self, PluginError> {
@@ -91,7 +104,34 @@ impl SlamSystem for FaultPlugin {
             seen: 0,
             trajectory: Vec::new(),
             hoard: Vec::new(),
+            map_from_odom: None,
         })
+    }
+
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        let mut system = Self::new(config_toml, rig)?;
+        if system.config.fault == Fault::Map
+            || (start.format, start.format_version, start.map.len()) != ("odometry-end", 1, 24)
+        {
+            return Err(PluginError::new(
+                "fault: not an odometry-end version 1 map of 24 bytes",
+            ));
+        }
+        system.map_from_odom = Some(
+            start
+                .initial_guess
+                .and_then(|g| g.map_from_base.isometry())
+                .unwrap_or_else(nalgebra::Isometry3::identity),
+        );
+        Ok(system)
+    }
+
+    fn status(&self) -> PoseStatus {
+        if self.map_from_odom.is_some() && self.trajectory.len() <= SEARCHING_POSES {
+            PoseStatus::Searching
+        } else {
+            PoseStatus::Localized
+        }
     }
 
     fn on_wheel_odometry(&mut self, odom: &WheelOdometry) -> Result<Option<Pose>, PluginError> {
@@ -102,9 +142,14 @@ impl SlamSystem for FaultPlugin {
         if self.seen == self.config.after {
             self.strike();
         }
-        let mut pose = Pose {
-            stamp_ns: odom.stamp_ns,
-            ..odom.odom_from_base
+        let mut pose = match (self.map_from_odom, odom.odom_from_base.isometry()) {
+            (Some(map_from_odom), Some(odom_from_base)) => {
+                Pose::new(odom.stamp_ns, &(map_from_odom * odom_from_base))
+            }
+            _ => Pose {
+                stamp_ns: odom.stamp_ns,
+                ..odom.odom_from_base
+            },
         };
         if self.config.fault == Fault::Nan && self.seen >= self.config.after {
             pose.translation[0] = f64::NAN;
@@ -114,8 +159,21 @@ impl SlamSystem for FaultPlugin {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        let saved_map = self.trajectory.last().and_then(Pose::isometry).map(|end| {
+            let (_, _, yaw) = end.rotation.euler_angles();
+            let t = end.translation.vector;
+            SavedMap {
+                format: "odometry-end".into(),
+                version: 1,
+                bytes: [t.x, t.y, yaw]
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect(),
+            }
+        });
         Ok(SlamOutput {
             trajectory: std::mem::take(&mut self.trajectory),
+            saved_map,
             ..SlamOutput::default()
         })
     }

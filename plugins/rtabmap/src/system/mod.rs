@@ -459,6 +459,7 @@ impl SlamSystem for Rtabmap {
                 cells: g.cells,
             }),
             events: std::mem::take(&mut self.events),
+            saved_map: None,
         })
     }
 }
