@@ -395,11 +395,13 @@ pub fn evaluate_localization(
     let first_localized = flagged.iter().position(|&f| f);
     let first_correct = correct.iter().position(|&c| c);
     let start = stamps[0];
-    let total: f64 = holds.iter().sum();
+    // Sums start at +0 (an empty `Iterator::sum` of floats is -0, which reads oddly in a
+    // results file).
+    let total: f64 = holds.iter().fold(0.0, |a, b| a + b);
     let localized_time: f64 = (0..kept.len())
         .filter(|&k| flagged[k])
         .map(|k| holds[k])
-        .sum();
+        .fold(0.0, |a, b| a + b);
     let errors: Vec<f64> = (0..kept.len())
         .filter(|&k| flagged[k])
         .map(|k| vs_truth[k].0)
@@ -431,7 +433,7 @@ pub fn evaluate_localization(
                 }
             })
             .map(|k| holds[k])
-            .sum()
+            .fold(0.0, |a, b| a + b)
     });
     let relocalized_after_s = kidnap_s.and_then(|t| {
         (0..kept.len())
@@ -460,8 +462,8 @@ pub fn evaluate_localization(
         } else {
             Some(Statistics::from_errors(&errors)?)
         },
-        false_vs_truth_s: false_vs_truth.iter().map(|e| e.duration_s).sum(),
-        false_vs_map_s: false_vs_map.iter().map(|e| e.duration_s).sum(),
+        false_vs_truth_s: false_vs_truth.iter().fold(0.0, |a, e| a + e.duration_s),
+        false_vs_map_s: false_vs_map.iter().fold(0.0, |a, e| a + e.duration_s),
         false_vs_truth,
         false_vs_map,
         judged_vs_map: (0..kept.len())

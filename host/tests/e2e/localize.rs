@@ -271,3 +271,54 @@ fn amcl_localises_in_the_surveyed_grid() {
         .expect("a false localisation");
     assert!((20.0..21.0).contains(&first_false), "{loc}");
 }
+
+/// lio-sam saves its keyframes and localises in them (Scan Context, then ICP to a submap):
+/// on its mapping run's own route it localises within the first 10 m with an ATE in the
+/// map frame within 20 % + 2 cm of the mapping run's, and the same map and seed give the
+/// same localisation byte for byte.
+#[test]
+fn lio_sam_localises_in_its_own_map_the_same_every_time() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mapping = map_run(tmp.path(), "lio-sam", &plugin_lib("lio_sam"), "");
+    let head = text(&std::fs::read(mapping.join("map.bin")).expect("map.bin"));
+    assert!(
+        head.contains("plugin = \"lio-sam\"") && head.contains("format = \"keyframe-clouds\""),
+        "{}",
+        &head[..head.len().min(300)]
+    );
+    let run = |name: &str| -> PathBuf {
+        let out = tmp.path().join(name);
+        let o = localize(
+            &out,
+            &[
+                "--map",
+                mapping.to_str().expect("utf-8"),
+                "--scenario",
+                "s1",
+                "--max-time",
+                ROUTE,
+            ],
+        );
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        out.join("s1").join("lio-sam")
+    };
+    let (first, second) = (run("loc-a"), run("loc-b"));
+    let loc = json(&first.join("metrics.json"))["localization"].clone();
+    assert_eq!(loc["success"], true, "{loc}");
+    assert!(
+        loc["first_correct_travel_m"].as_f64().expect("localised") < 10.0,
+        "{loc}"
+    );
+    let ate = loc["ate_map_frame"]["rmse"].as_f64().expect("ATE");
+    let own = json(&mapping.join("metrics.json"))["online_ape"]["rmse"]
+        .as_f64()
+        .expect("the mapping run's ATE");
+    assert!(ate <= 1.2 * own + 0.02, "{ate} m against {own} m");
+    for file in ["online.tum", "pose_status.csv", "estimate.tum"] {
+        assert_eq!(
+            std::fs::read(first.join(file)).expect("first"),
+            std::fs::read(second.join(file)).expect("second"),
+            "{file} differs between two localisations in one map"
+        );
+    }
+}

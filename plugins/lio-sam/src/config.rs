@@ -40,6 +40,10 @@ pub struct Config {
     /// bias after it, keyframes and loops), to see where an estimate goes wrong; a relative
     /// path lands in the run's folder.
     pub trace_csv: Option<std::path::PathBuf>,
+    /// Localisation in a saved map (`vinebench localize`; the original has no such mode):
+    /// Scan Context's global search, then ICP to a submap, at LIO-SAM's loop-closure values
+    /// (`slam_common::maps::localizer`).
+    pub localization: slam_common::maps::localizer::LocalizerConfig,
 }
 
 /// No check beyond the types: every value the types allow is a valid setting.
@@ -66,6 +70,7 @@ impl Default for Config {
             },
             profile_csv: None,
             trace_csv: None,
+            localization: Default::default(),
         }
     }
 }

@@ -4,10 +4,14 @@ use std::fmt::Write as _;
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, Parameters, PluginError, PointCloud, Pose, Requirements, Rig,
-    SensorKind, SlamOutput, SlamSystem,
+    Event, EventKind, Imu, MapStart, Parameters, PluginError, PointCloud, Pose, PoseStatus,
+    Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
 };
 use slam_common::factor_graph::backend::ImuBias;
+use slam_common::maps::keyframes::{
+    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe,
+};
+use slam_common::maps::localizer::MapLocalizer;
 use slam_common::motion::imu::NavState;
 use slam_common::registration::voxel::downsample;
 
@@ -116,6 +120,20 @@ pub struct LioSam {
     /// The original's separate IMU odometry (with the IMU on and `imu_factors` off): the
     /// velocity and bias from every registered sweep.
     imu_odometry: Option<ImuOdometry>,
+    /// Localisation mode: the saved map's localiser, the guess of the start (`map_from_lidar`)
+    /// until the first sweep, the last sweep's features (lidar frame), the last status, and
+    /// the poses returned.
+    localizer: Option<Localizing>,
+}
+
+/// A localisation run's state (`vinebench localize`).
+#[derive(Debug)]
+struct Localizing {
+    localizer: MapLocalizer,
+    guess: Option<Isometry3<f64>>,
+    points: Vec<[f32; 3]>,
+    status: PoseStatus,
+    trajectory: Vec<Pose>,
 }
 
 impl LioSam {
@@ -130,6 +148,16 @@ impl LioSam {
             &self.layout,
         );
         let features = extract(&rings, &self.cfg.features);
+        if let Some(l) = &mut self.localizer {
+            l.points.clear();
+            l.points.extend(
+                features
+                    .edges
+                    .iter()
+                    .chain(&features.surfs)
+                    .map(|p| [p.x as f32, p.y as f32, p.z as f32]),
+            );
+        }
         let predicted = motion.at(start).unwrap_or_else(Isometry3::identity);
         let outcome = if self.keyframes.is_empty() {
             None
@@ -478,7 +506,40 @@ impl SlamSystem for LioSam {
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
     fn requirements() -> Requirements {
-        Requirements::online(&[SensorKind::Lidar, SensorKind::Imu])
+        Requirements::online(&[SensorKind::Lidar, SensorKind::Imu]).localizing()
+    }
+
+    /// Localisation in a map a mapping run saved: the front end runs as in mapping (its own
+    /// loop closure off: the saved map is the reference), and each sweep's features are
+    /// registered to the saved keyframes (`slam_common::maps::localizer`).
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        if (start.format, start.format_version) != (KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION) {
+            return Err(PluginError::new(format!(
+                "lio-sam reads {KEYFRAME_MAP_FORMAT} version {KEYFRAME_MAP_VERSION} maps, not {} version {}",
+                start.format, start.format_version
+            )));
+        }
+        let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
+        let mut system = Self::new(config_toml, rig)?;
+        system.cfg.loop_closure.enabled = false;
+        let guess = start
+            .initial_guess
+            .and_then(|g| g.map_from_base.isometry())
+            .map(|map_from_base| map_from_base * system.lidar_from_base.inverse());
+        system.localizer = Some(Localizing {
+            localizer: MapLocalizer::new(map, system.cfg.localization.clone()),
+            guess,
+            points: Vec::new(),
+            status: PoseStatus::Searching,
+            trajectory: Vec::new(),
+        });
+        Ok(system)
+    }
+
+    fn status(&self) -> PoseStatus {
+        self.localizer
+            .as_ref()
+            .map_or(PoseStatus::Localized, |l| l.status)
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
@@ -527,6 +588,7 @@ impl SlamSystem for LioSam {
             looped: Vec::new(),
             trace: Vec::new(),
             imu_odometry,
+            localizer: None,
             cfg,
         })
     }
@@ -543,10 +605,38 @@ impl SlamSystem for LioSam {
         if let Some(k) = self.keyframes.last() {
             self.imu.discard_before(k.stamp_ns);
         }
+        let lidar_from_base = self.lidar_from_base;
+        if let Some(l) = &mut self.localizer {
+            if let Some(guess) = l.guess.take() {
+                l.localizer.guess(&guess, &world_from_lidar);
+            }
+            let found = l.localizer.update(&world_from_lidar, &l.points);
+            l.status = if found.localized {
+                PoseStatus::Localized
+            } else {
+                PoseStatus::Searching
+            };
+            let pose = Pose::new(cloud.stamp_ns, &(found.map_from_sensor * lidar_from_base));
+            l.trajectory.push(pose);
+            return Ok(Some(pose));
+        }
         Ok(Some(self.base_pose(cloud.stamp_ns, &world_from_lidar)))
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        if let Some(l) = &mut self.localizer {
+            // Localising: the poses in the saved map as returned (no map of its own).
+            eprintln!(
+                "lio-sam: localised in {} keyframes: {} global searches, {} accepted",
+                l.localizer.keyframes(),
+                l.localizer.searches,
+                l.localizer.relocalizations
+            );
+            return Ok(SlamOutput {
+                trajectory: std::mem::take(&mut l.trajectory),
+                ..SlamOutput::default()
+            });
+        }
         let trajectory = self
             .sweeps
             .iter()
@@ -588,12 +678,34 @@ impl SlamSystem for LioSam {
             std::fs::write(path, csv)
                 .map_err(|e| PluginError::new(format!("trace_csv {}: {e}", path.display())))?;
         }
+        // The map to localise in later: every keyframe at its optimised pose with its
+        // features, in the lidar frame.
+        let saved = KeyframeMap {
+            keyframes: (0..self.keyframes.len())
+                .map(|k| {
+                    let f = &self.keyframes[k].features;
+                    MapKeyframe {
+                        map_from_sensor: self.keyframe_world_from_lidar(k),
+                        points: f
+                            .edges
+                            .iter()
+                            .chain(&f.surfs)
+                            .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                            .collect(),
+                    }
+                })
+                .collect(),
+        };
         Ok(SlamOutput {
             trajectory,
             map: Some(map),
             grid: None,
             events: std::mem::take(&mut self.events),
-            saved_map: None,
+            saved_map: Some(SavedMap {
+                format: KEYFRAME_MAP_FORMAT.into(),
+                version: KEYFRAME_MAP_VERSION,
+                bytes: saved.to_bytes(),
+            }),
         })
     }
 }
