@@ -27,6 +27,10 @@ pub struct LocalizeArgs {
     /// run's map: what a lab builds from a survey.
     #[arg(long, conflicts_with = "map")]
     pub surveyed: bool,
+    /// With `--surveyed`: survey this world file (the block as it was when surveyed, e.g. at
+    /// another growth stage) instead of the run's own world.
+    #[arg(long, value_name = "FILE", requires = "surveyed")]
+    pub survey_world: Option<PathBuf>,
     #[command(flatten)]
     pub sim: SimArgs,
     /// Plugin name or library (default: the mapping run's).
@@ -132,7 +136,13 @@ pub fn run(args: &LocalizeArgs) -> anyhow::Result<()> {
         (None, None) => anyhow::bail!("--surveyed needs --plugin (e.g. amcl)"),
     };
     let map = match (&mapping, args.grid) {
-        (None, _) => MapSource::Surveyed,
+        (None, _) => MapSource::Surveyed {
+            world: args
+                .survey_world
+                .as_deref()
+                .map(std::path::absolute)
+                .transpose()?,
+        },
         (Some(dir), true) => {
             let yaml = dir.join(files::GRID_YAML);
             anyhow::ensure!(
@@ -171,7 +181,10 @@ pub fn run(args: &LocalizeArgs) -> anyhow::Result<()> {
         MapSource::Grid { yaml } => {
             crate::results::read_grid(yaml)?;
         }
-        MapSource::Surveyed => {}
+        MapSource::Surveyed { world: Some(file) } => {
+            sim::SimConfig::load(Some(file))?;
+        }
+        MapSource::Surveyed { world: None } => {}
     }
     let initial_guess = args
         .initial_guess

@@ -234,6 +234,7 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
         drift_percent: None,
         estimate_xy: Vec::new(),
         max_time_s: run.max_time_s,
+        localization: None,
     };
     if run.status != RunStatus::Ok {
         return Ok(LoadedRun {
@@ -283,6 +284,7 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
     record.joins = metrics.joins;
     record.sim3_scale = metrics.sim3_scale;
     record.drift_percent = metrics.drift.map(|d| d.translation_percent);
+    record.localization = metrics.localization;
     record.estimate_xy = aligned;
     let detail = RunDetail {
         alignment: metrics.alignment,

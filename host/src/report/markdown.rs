@@ -24,6 +24,15 @@ pub(super) const CAPTION: &str = "APE translation after alignment in metres (max
 pub(super) const PAPER_CAPTION: &str = "paper max .. paper std: the figures the paper \
     published for that system and scenario (Hroob et al. 2021, Table 2; `paper.csv`), not ours.";
 
+pub(super) const LOCALIZATION_CAPTION: &str = "localised .. wrong lane s: a localisation \
+    run's judgement (vinebench localize): localised, 1 when the first correct pose came \
+    within 10 m of travel; to localise s, time to it; localised %, the time the system said \
+    it was localised; ATE in map, RMSE of those poses in the map's frame without \
+    re-alignment (the mapping run's alignment carried over); false s and false vs map s, \
+    time said localised more than 0.5 m or 10 deg off the truth, and off the mapping run's \
+    own estimate at the same place; wrong lane s, time said localised between other rows \
+    than the truth. The APE rows above are of the final trajectory, aligned as any run.";
+
 /// `text` safe inside a table cell: `|` escaped.
 fn cell(text: &str) -> String {
     text.replace('|', "\\|")
@@ -117,6 +126,9 @@ fn notes(table: &Table) -> String {
     let _ = write!(out, "\n{CAPTION}\n");
     if table.reference.is_some() {
         let _ = write!(out, "\n{PAPER_CAPTION}\n");
+    }
+    if table.columns.iter().any(|c| c.run.localization.is_some()) {
+        let _ = write!(out, "\n{LOCALIZATION_CAPTION}\n");
     }
     if let Some(note) = table.cut_note() {
         let _ = write!(out, "\n{note}\n");

@@ -68,6 +68,8 @@ pub struct RunRecord {
     /// The route was cut at this simulated time, seconds (`--max-time`); `None`: the whole
     /// route, as the paper ran it.
     pub max_time_s: Option<f64>,
+    /// A localisation run's judgement (`vinebench localize`); `None` for a mapping run.
+    pub localization: Option<crate::results::LocalizationMetrics>,
 }
 
 /// Ground truth (x, y) per scenario for the overlay plots.

@@ -35,6 +35,20 @@ const SCALE_LABEL: &str = "scale";
 const SCALE_DECIMALS: usize = 3;
 const DRIFT_LABEL: &str = "drift %";
 const DRIFT_DECIMALS: usize = 2;
+/// Labels of a localisation run's rows (`vinebench localize`), shown when a column is one:
+/// whether it localised within 10 m, seconds to the first correct pose, percent of the time
+/// localised, ATE (RMSE, m) of the localised poses in the map frame without re-alignment,
+/// and seconds of false localisation (against the truth, against the map) and in a wrong
+/// lane.
+const LOCALIZATION_ROWS: [(&str, usize); 7] = [
+    ("localised", 0),
+    ("to localise s", 1),
+    ("localised %", 0),
+    ("ATE in map", 3),
+    ("false s", 1),
+    ("false vs map s", 1),
+    ("wrong lane s", 1),
+];
 /// Labels of the reference's rows, in [`super::reference::STATISTICS`] order (the paper
 /// prints centimetres: two decimals).
 const PAPER_LABELS: [&str; 5] = [
@@ -268,6 +282,36 @@ impl<'a> Table<'a> {
                     .collect(),
                 decimals: 0,
             });
+        }
+        if self.columns.iter().any(|c| c.run.localization.is_some()) {
+            for (k, &(label, decimals)) in LOCALIZATION_ROWS.iter().enumerate() {
+                rows.push(Row {
+                    label,
+                    cells: self
+                        .columns
+                        .iter()
+                        .map(|c| {
+                            let Some(l) = &c.run.localization else {
+                                return cell(c, None);
+                            };
+                            let r = &l.report;
+                            cell(
+                                c,
+                                match k {
+                                    0 => Some(f64::from(u8::from(r.success))),
+                                    1 => r.first_correct_s,
+                                    2 => Some(100.0 * r.localized_fraction),
+                                    3 => r.ate_map_frame.as_ref().map(|s| s.rmse),
+                                    4 => Some(r.false_vs_truth_s),
+                                    5 => Some(r.false_vs_map_s),
+                                    _ => Some(r.wrong_lane_s),
+                                },
+                            )
+                        })
+                        .collect(),
+                    decimals,
+                });
+            }
         }
         if let Some(reference) = self.reference {
             for (k, label) in PAPER_LABELS.into_iter().enumerate() {

@@ -40,6 +40,7 @@ fn ok(scenario: &str, plugin: &str, base: f64, rtf: f64, dy: f64) -> RunRecord {
         drift_percent: Some(base / 2.0),
         estimate_xy: (0..=50).map(|i| (f64::from(i) * 0.5, dy)).collect(),
         max_time_s: None,
+        localization: None,
     }
 }
 
@@ -70,6 +71,7 @@ fn bench() -> (Vec<String>, Vec<String>, Vec<RunRecord>, Vec<ScenarioTruth>) {
             drift_percent: None,
             estimate_xy: Vec::new(),
             max_time_s: None,
+            localization: None,
         },
     ];
     let truths = ["s0", "s1"]

@@ -31,10 +31,13 @@ pub enum MapSource {
     /// An occupancy grid as map_server gives one (`grid.yaml` of a mapping run), handed to
     /// the plugin as [`GRID_MAP_FORMAT`].
     Grid { yaml: PathBuf },
-    /// The world's surveyed grid at the front 2D lidar's height ([`surveyed_grid`]), built
-    /// from the localisation run's own world (`sim::World::surveyed_grid`), in the world
-    /// frame.
-    Surveyed,
+    /// The world's surveyed grid at the front 2D lidar's height ([`surveyed_grid`]), in the
+    /// world frame: of the world file `world` (the block as it was when surveyed, e.g. at
+    /// another growth stage), else of the localisation run's own world.
+    Surveyed {
+        #[serde(default)]
+        world: Option<PathBuf>,
+    },
 }
 
 /// A guess of the start in the map frame, with its uncertainty.
@@ -135,11 +138,20 @@ pub fn map_bytes(
                 GRID_MAP_VERSION,
             ))
         }
-        MapSource::Surveyed => Ok((
+        MapSource::Surveyed { world: None } => Ok((
             surveyed_grid(config, world).to_map_bytes(),
             GRID_MAP_FORMAT.into(),
             GRID_MAP_VERSION,
         )),
+        MapSource::Surveyed { world: Some(file) } => {
+            let surveyed = sim::SimConfig::load(Some(file))?;
+            let built = sim::world::World::from_config(&surveyed);
+            Ok((
+                surveyed_grid(&surveyed, &built).to_map_bytes(),
+                GRID_MAP_FORMAT.into(),
+                GRID_MAP_VERSION,
+            ))
+        }
     }
 }
 

@@ -115,7 +115,12 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
                     let from = match &spec.map {
                         super::MapSource::Saved { path } => path.display().to_string(),
                         super::MapSource::Grid { yaml } => yaml.display().to_string(),
-                        super::MapSource::Surveyed => "the surveyed grid".to_owned(),
+                        super::MapSource::Surveyed { world: None } => {
+                            "the surveyed grid".to_owned()
+                        }
+                        super::MapSource::Surveyed { world: Some(w) } => {
+                            format!("the surveyed grid of {}", w.display())
+                        }
                     };
                     anyhow!("{from}: plugin {} cannot localise in it: {e}", plugin.name)
                 })?;

@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# Issue 46's localisation study (docs/localization/): on the paper's world under the
+# `typical` profile, a map built on S3 at growth stage 2; each system localises on S1 at
+# stages 0, 2 and 4, plant variation 0 and 1, seeds 0-2 (one map per variation and seed),
+# and once kidnapped (S1, stage 2, variation 0, seed 0: carried 30 s ahead at 60 s).
+# Systems: lio-sam in its own saved keyframes; amcl in the world's surveyed grid of the
+# block at stage 2 (what a lab surveys once).
+#   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
+#   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
+#   bash scripts/study-localization.sh --table       write docs/localization/study.md
+# A run whose folder holds metrics.json (or whose kept copy exists) is not run again; the
+# study spreads over sessions. VINEBENCH: another build's vinebench, used as it is (its
+# plugins beside it), so that a study left running keeps its binary while the tree is
+# rebuilt.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+results=results/localization
+kept=docs/localization/runs
+vb=${VINEBENCH:-target/release/vinebench}
+all=(lio-sam amcl)
+
+world() { # world STAGE VARIATION -> the path of the paper's world at that stage and variation
+    local file="$results/worlds/stage$1-var$2.toml"
+    if [ ! -f "$file" ]; then
+        mkdir -p "$results/worlds"
+        python3 - "$1" "$2" "$file" <<'EOF'
+import re, sys
+stage, var, out = sys.argv[1:]
+text = open("configs/paper-world.toml").read()
+text = re.sub(r"(?m)^growth_stage = .*$", f"growth_stage = {float(stage)}", text)
+text = re.sub(r"(?m)^plant_variation = .*$", f"plant_variation = {float(var)}", text)
+open(out, "w").write(text)
+EOF
+    fi
+    echo "$file"
+}
+
+done_run() { [ -f "$1/metrics.json" ] || [ -f "$kept/${1#"$results"/}/metrics.json" ]; }
+
+map_run() { # map_run SYSTEM VAR SEED -> the mapping run's folder
+    local dir="$results/map/$1/var$2-seed$3"
+    if ! [ -f "$dir/s3/$1/metrics.json" ]; then
+        rm -rf "$dir"
+        nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile typical --scenario s3 \
+            --seed "$3" --plugin "$1" --out "$dir" >&2
+    fi
+    echo "$dir/s3/$1"
+}
+
+localize() { # localize SYSTEM VAR SEED STAGE NAME [ARGS...]
+    local system=$1 var=$2 seed=$3 stage=$4 name=$5
+    shift 5
+    local out="$results/loc/$system/$name"
+    done_run "$out/s1/$system" && return 0
+    rm -rf "$out"
+    local map
+    case $system in
+        amcl) map=(--surveyed --survey-world "$(world 2 "$var")" --plugin amcl) ;;
+        *) map=(--map "$(map_run "$system" "$var" "$seed")") ;;
+    esac
+    echo "localize $system $name" >&2
+    nice -n 19 "$vb" localize "${map[@]}" --world "$(world "$stage" "$var")" --profile typical \
+        --scenario s1 --seed "$seed" --label "$system" --out "$out" --allow-failures "$@" >&2
+    printf '{"system": "%s", "variation": %s, "seed": %s, "stage": %s, "kidnap": %s}\n' \
+        "$system" "$var" "$seed" "$stage" "$([ $# -gt 0 ] && echo true || echo false)" \
+        > "$out/s1/$system/cell.json"
+}
+
+save() {
+    for dir in "$results"/loc/*/*/s1/*/; do
+        [ -f "$dir/metrics.json" ] || continue
+        rel=${dir#"$results"/}
+        dest="$kept/$rel"
+        [ -f "$dest/metrics.json" ] && continue
+        mkdir -p "$dest"
+        for f in cell.json metrics.json localization.toml run.toml; do
+            [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
+        done
+    done
+    echo "kept in $kept"
+}
+
+case "${1:-}" in
+    --save) save; exit 0 ;;
+    --table) python3 scripts/study-localization.py "$kept" > docs/localization/study.md
+             echo "wrote docs/localization/study.md"; exit 0 ;;
+esac
+systems=("$@")
+[ ${#systems[@]} -gt 0 ] || systems=("${all[@]}")
+for system in "${systems[@]}"; do
+    for var in 0 1; do
+        for seed in 0 1 2; do
+            for stage in 0 2 4; do
+                localize "$system" "$var" "$seed" "$stage" "var$var-stage$stage-seed$seed"
+            done
+        done
+    done
+    localize "$system" 0 0 2 kidnap-var0-stage2-seed0 --kidnap 60,30
+    save
+done
