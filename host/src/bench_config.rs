@@ -152,6 +152,85 @@ pub struct BenchConfig {
     /// the printed table, `table.md` and the report, for the plugins whose label matches.
     pub paper_table: Option<PathBuf>,
     pub plugins: Vec<PluginEntry>,
+    /// Localisation runs after the mapping runs (`vinebench localize`'s bench form): each
+    /// starts a plugin from a map one of this bench's runs built.
+    #[serde(default)]
+    pub localize: Vec<LocalizeEntry>,
+}
+
+/// A `[[localize]]` entry: a plugin started from a map this bench built (its run
+/// `map = "scenario/label"`), on `scenario`, in `world` (default: the bench's), e.g. another
+/// growth stage of the block.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalizeEntry {
+    /// The mapping run, `"scenario/label"` of this bench; absent with `surveyed`.
+    pub map: Option<String>,
+    pub scenario: String,
+    /// Column label (default: the plugin's label, `-in-` and the map's scenario).
+    pub label: Option<String>,
+    /// The world of the localisation run (relative to this file); default: the bench's.
+    pub world: Option<PathBuf>,
+    /// Another plugin to localise (name or path); default: the mapping run's, with its
+    /// parameters.
+    pub plugin: Option<String>,
+    /// The plugin's parameters when `plugin` is given.
+    #[serde(default)]
+    pub params: toml::Table,
+    /// The mapping run's occupancy grid instead of its `map.bin` (for `amcl`).
+    #[serde(default)]
+    pub grid: bool,
+    /// The world's surveyed grid instead of a mapping run's map; of `survey_world` where
+    /// given (relative to this file).
+    #[serde(default)]
+    pub surveyed: bool,
+    pub survey_world: Option<PathBuf>,
+    /// `[x, y, yaw, sigma_xy, sigma_yaw]` in the map's frame; absent: global localisation.
+    pub initial_guess: Option<[f64; 5]>,
+    /// `[at, skip]` seconds: carried `skip` seconds ahead along the route at `at`.
+    pub kidnap: Option<[f64; 2]>,
+}
+
+impl LocalizeEntry {
+    /// The mapping run's scenario and label.
+    pub fn map_run(&self) -> Option<(&str, &str)> {
+        self.map.as_deref().and_then(|m| m.split_once('/'))
+    }
+
+    /// The order for the worker, the mapping run's folder given relative to the
+    /// localisation run's (both in one results folder: `../../scenario/label`).
+    pub fn spec(&self) -> crate::runner::LocalizeSpec {
+        use crate::runner::{GuessSpec, Kidnap, LocalizeSpec, MapSource};
+        let mapping_run = self
+            .map_run()
+            .filter(|_| !self.surveyed)
+            .map(|(s, l)| Path::new("..").join("..").join(s).join(l));
+        let map = match (&mapping_run, self.grid) {
+            (None, _) => MapSource::Surveyed {
+                world: self.survey_world.clone(),
+            },
+            (Some(dir), true) => MapSource::Grid {
+                yaml: dir.join(crate::results::files::GRID_YAML),
+            },
+            (Some(dir), false) => MapSource::Saved {
+                path: dir.join(crate::results::files::SAVED_MAP),
+            },
+        };
+        LocalizeSpec {
+            map,
+            mapping_run,
+            initial_guess: self
+                .initial_guess
+                .map(|[x, y, yaw, sigma_xy_m, sigma_yaw_rad]| GuessSpec {
+                    x,
+                    y,
+                    yaw,
+                    sigma_xy_m,
+                    sigma_yaw_rad,
+                }),
+            kidnap: self.kidnap.map(|[at_s, skip_s]| Kidnap { at_s, skip_s }),
+        }
+    }
 }
 
 impl BenchConfig {
@@ -174,6 +253,18 @@ impl BenchConfig {
         cfg.plugin_dirs = cfg.plugin_dirs.iter().map(|d| base.join(d)).collect();
         for p in &mut cfg.plugins {
             p.path = p.path.as_ref().map(|q| base.join(q));
+        }
+        for l in &mut cfg.localize {
+            l.world = l
+                .world
+                .as_ref()
+                .map(|w| std::path::absolute(base.join(w)))
+                .transpose()?;
+            l.survey_world = l
+                .survey_world
+                .as_ref()
+                .map(|w| std::path::absolute(base.join(w)))
+                .transpose()?;
         }
         cfg.validate()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -267,7 +358,56 @@ impl BenchConfig {
                 );
             }
         }
+        for (i, l) in self.localize.iter().enumerate() {
+            let at = format!("localize[{i}]");
+            match (l.map_run(), l.surveyed) {
+                (None, false) => bail!(
+                    "{at}: map = \"scenario/label\" of one of this bench's runs (or surveyed = true)"
+                ),
+                (Some((s, label)), false) => {
+                    if !self.scenarios.iter().any(|x| x == s) || !labels.contains(label) {
+                        bail!(
+                            "{at}: map = \"{s}/{label}\" is not a run of this bench (scenario/label)"
+                        );
+                    }
+                }
+                (Some(_), true) => bail!("{at}: give map or surveyed = true, not both"),
+                (None, true) if l.plugin.is_none() => {
+                    bail!("{at}: surveyed = true needs plugin (e.g. \"amcl\")")
+                }
+                (None, true) => {}
+            }
+            if l.grid && l.surveyed {
+                bail!("{at}: grid and surveyed: give one");
+            }
+            l.spec()
+                .check()
+                .map_err(|why| anyhow::anyhow!("{at}: {why}"))?;
+            if !labels.insert(self.localize_label(i)) {
+                bail!(
+                    "{at}: label '{}' used twice; give each entry its own label",
+                    self.localize_label(i)
+                );
+            }
+        }
         Ok(())
+    }
+
+    /// The column label of `[[localize]]` entry `i`.
+    pub fn localize_label(&self, i: usize) -> String {
+        let l = &self.localize[i];
+        if let Some(label) = &l.label {
+            return label.clone();
+        }
+        let who = match (&l.plugin, l.map_run()) {
+            (Some(p), _) => crate::cmd::run::plugin_label(p),
+            (None, Some((_, label))) => label.to_owned(),
+            (None, None) => "localize".to_owned(),
+        };
+        match l.map_run() {
+            Some((scenario, _)) if !l.surveyed => format!("{who}-in-{scenario}"),
+            _ => format!("{who}-in-survey"),
+        }
     }
 }
 

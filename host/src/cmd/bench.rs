@@ -57,7 +57,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         args.file.display()
     );
     let resolved = cfg.resolve_plugins(&args.file)?;
-    let labels: Vec<String> = resolved.iter().map(|p| p.label.clone()).collect();
+    let mut labels: Vec<String> = resolved.iter().map(|p| p.label.clone()).collect();
     let mut runs = Vec::new();
     for scenario in &cfg.scenarios {
         for p in &resolved {
@@ -71,7 +71,51 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 drops: None,
                 base_dir: Some(p.base_dir.clone()),
                 localize: None,
+                world: None,
             });
+        }
+    }
+    // The localisation runs, after the mapping runs (`bench_in` runs them second).
+    let mut scenarios = cfg.scenarios.clone();
+    for (i, l) in cfg.localize.iter().enumerate() {
+        let (plugin, params_toml, base_dir) = match (&l.plugin, l.map_run()) {
+            (Some(p), _) => {
+                let dirs = crate::plugins::search_path(&cfg.plugin_dirs);
+                let library = crate::plugins::resolve(p, &dirs)
+                    .with_context(|| format!("{}: localize[{i}]", args.file.display()))?;
+                let base = resolved
+                    .first()
+                    .map(|r| r.base_dir.clone())
+                    .unwrap_or_else(|| PathBuf::from("."));
+                (library, toml::to_string(&l.params)?, base)
+            }
+            (None, Some((_, label))) => {
+                let r = resolved
+                    .iter()
+                    .find(|r| r.label == label)
+                    .expect("checked when the file was read");
+                (r.library.clone(), r.params_toml.clone(), r.base_dir.clone())
+            }
+            (None, None) => unreachable!("checked when the file was read"),
+        };
+        let label = cfg.localize_label(i);
+        runs.push(PlannedRun {
+            scenario: l.scenario.clone(),
+            label: label.clone(),
+            plugin,
+            params_toml,
+            pace: crate::runner::Pace::Free,
+            queue_size: None,
+            drops: None,
+            base_dir: Some(base_dir),
+            localize: Some(l.spec()),
+            world: l.world.clone(),
+        });
+        if !labels.contains(&label) {
+            labels.push(label);
+        }
+        if !scenarios.contains(&l.scenario) {
+            scenarios.push(l.scenario.clone());
         }
     }
     let stem = args
@@ -87,7 +131,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let plan = Plan {
         world: world.path().map(PathBuf::from),
         seed: cfg.bench_seed(),
-        scenarios: cfg.scenarios.clone(),
+        scenarios,
         runs,
         jobs: args.jobs.or(cfg.jobs).unwrap_or_else(default_jobs),
         timeout: Duration::from_secs_f64(cfg.timeout_s),
@@ -140,12 +184,14 @@ fn fingerprint(plan: &Plan) -> anyhow::Result<String> {
     ));
     for r in &plan.runs {
         h.update(format!(
-            "|{}|{}|{}|{}|{:?}",
+            "|{}|{}|{}|{}|{:?}|{:?}|{:?}",
             r.scenario,
             r.label,
             r.plugin.display(),
             r.params_toml,
-            r.pace
+            r.pace,
+            r.localize,
+            r.world
         ));
     }
     h.update(env!("CARGO_PKG_VERSION"));
@@ -245,60 +291,48 @@ fn bench_in(
             plan.runs.len()
         );
     }
-    let sub = Plan {
-        runs: todo.iter().map(|&i| plan.runs[i].clone()).collect(),
-        ..plan.clone()
-    };
-    // Each run's predicted duration: its route's length times its system's cost in the
-    // previous results at `out`, if any (Progress says how the estimate uses them); none:
-    // each system's speed is measured as it runs.
-    let route_s = crate::runner::route_seconds(&sub).ok();
-    let costs = previous_costs(out);
-    let predicted = route_s.as_ref().map(|route_s| {
-        let fallback = if costs.is_empty() {
-            1.0
-        } else {
-            costs.values().sum::<f64>() / costs.len() as f64
-        };
-        sub.runs
+    // Mapping runs first, then the localisation runs that start from their maps (each alone:
+    // a kidnapping changes its stream, and its world may be its own).
+    let mut ran = Vec::with_capacity(todo.len());
+    for localizing in [false, true] {
+        let phase: Vec<usize> = todo
             .iter()
-            .zip(route_s)
-            .map(|(run, s)| s * costs.get(&run.label).copied().unwrap_or(fallback))
-            .collect()
-    });
-    let mut progress = Progress::new(sub.runs.len(), predicted, sub.jobs, false);
-    if let Some(route_s) = route_s.filter(|_| costs.is_empty()) {
-        progress = progress.by_system(
-            route_s
+            .copied()
+            .filter(|&i| plan.runs[i].localize.is_some() == localizing)
+            .collect();
+        if phase.is_empty() || crate::runner::interrupt::interrupted() {
+            continue;
+        }
+        let sub = Plan {
+            runs: phase.iter().map(|&i| plan.runs[i].clone()).collect(),
+            share_simulation: plan.share_simulation && !localizing,
+            record_once: plan.record_once.clone().filter(|_| !localizing),
+            ..plan.clone()
+        };
+        ran.extend(
+            tri!(run_phase(&sub, out, staging.dir()))
                 .into_iter()
-                .zip(&sub.runs)
-                .map(|(s, run)| (s, run.label.clone()))
-                .collect(),
+                .zip(phase),
         );
     }
-    let ran = if sub.runs.is_empty() {
-        Vec::new()
-    } else {
-        tri!(crate::runner::execute_observed(
-            &sub,
-            staging.dir(),
-            &|schedule| progress.set_schedule(schedule),
-            &|i, f| progress.observe(i, f),
-            &|i, outcome| {
-                progress.finished(
-                    i,
-                    &format!("{}/{}", outcome.scenario, outcome.label),
-                    outcome,
-                );
-            }
-        ))
-    };
-    for (k, outcome) in ran.into_iter().enumerate() {
-        kept[todo[k]] = Some(outcome);
+    for (outcome, i) in ran {
+        kept[i] = Some(outcome);
     }
+    // A phase not started because of Ctrl-C: its runs are interrupted ones.
     let outcomes: Vec<RunOutcome> = kept
         .into_iter()
-        .map(|o| o.expect("every run kept or run"))
+        .zip(&plan.runs)
+        .map(|(o, run)| {
+            o.unwrap_or_else(|| RunOutcome {
+                scenario: run.scenario.clone(),
+                label: run.label.clone(),
+                status: RunStatus::Failed(crate::runner::interrupt::REASON.to_owned()),
+                max_time_s: plan.max_time_s,
+                folder: crate::results::RunFolder::new(
+                    staging.dir().join(&run.scenario).join(&run.label),
+                ),
+            })
+        })
         .collect();
     if crate::runner::interrupt::interrupted() {
         return Err((interrupted(staging, out, &outcomes), None));
@@ -328,6 +362,50 @@ fn bench_in(
         dir.join(crate::report::html::REPORT).display()
     );
     Ok(outcomes)
+}
+
+/// Runs `sub`'s runs in `dir` with a progress display; their outcomes in order.
+fn run_phase(sub: &Plan, out: &Path, dir: &Path) -> anyhow::Result<Vec<RunOutcome>> {
+    // Each run's predicted duration: its route's length times its system's cost in the
+    // previous results at `out`, if any (Progress says how the estimate uses them); none:
+    // each system's speed is measured as it runs.
+    let route_s = crate::runner::route_seconds(sub).ok();
+    let costs = previous_costs(out);
+    let predicted = route_s.as_ref().map(|route_s| {
+        let fallback = if costs.is_empty() {
+            1.0
+        } else {
+            costs.values().sum::<f64>() / costs.len() as f64
+        };
+        sub.runs
+            .iter()
+            .zip(route_s)
+            .map(|(run, s)| s * costs.get(&run.label).copied().unwrap_or(fallback))
+            .collect()
+    });
+    let mut progress = Progress::new(sub.runs.len(), predicted, sub.jobs, false);
+    if let Some(route_s) = route_s.filter(|_| costs.is_empty()) {
+        progress = progress.by_system(
+            route_s
+                .into_iter()
+                .zip(&sub.runs)
+                .map(|(s, run)| (s, run.label.clone()))
+                .collect(),
+        );
+    }
+    crate::runner::execute_observed(
+        sub,
+        dir,
+        &|schedule| progress.set_schedule(schedule),
+        &|i, f| progress.observe(i, f),
+        &|i, outcome| {
+            progress.finished(
+                i,
+                &format!("{}/{}", outcome.scenario, outcome.label),
+                outcome,
+            );
+        },
+    )
 }
 
 /// After Ctrl-C: keeps the partial folder if any run finished (the same command resumes

@@ -135,6 +135,7 @@ pub fn run_with(
             drops: args.drops.clone(),
             base_dir: Some(base_dir),
             localize,
+            world: None,
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(args.timeout_s),

@@ -132,7 +132,8 @@ fn localization(
     let (world_from_map, reference) = match &spec.mapping_run {
         None => (Sim3::identity(), None),
         Some(dir) => {
-            let mapping = RunFolder::new(dir);
+            // A bench's localisation run names its mapping run relative to its own folder.
+            let mapping = RunFolder::new(run.dir.join(dir));
             let transform = mapping
                 .read_metrics()?
                 .alignment_transform

@@ -47,6 +47,8 @@ pub struct PlannedRun {
     pub base_dir: Option<PathBuf>,
     /// A localisation run's map and options (`vinebench localize`); `None`: a mapping run.
     pub localize: Option<LocalizeSpec>,
+    /// This run's own world file instead of the plan's (a `[[localize]]` entry's `world`).
+    pub world: Option<PathBuf>,
 }
 
 /// A resolved matrix.
@@ -239,7 +241,12 @@ fn run_all(
         let job = Job {
             scenario: run.scenario.clone(),
             // Absolute: the worker runs in its run folder (see `supervise`).
-            world: plan.world.as_ref().map(std::path::absolute).transpose()?,
+            world: run
+                .world
+                .as_ref()
+                .or(plan.world.as_ref())
+                .map(std::path::absolute)
+                .transpose()?,
             seed: plan.seed,
             plugin: std::path::absolute(&run.plugin)?,
             params_toml: run.params_toml.clone(),

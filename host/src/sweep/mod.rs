@@ -350,6 +350,11 @@ impl Sweep {
     /// Reads and expands a sweep file; `max_time_s` (`--max-time`) overrides the file's.
     pub fn load(file: &Path, max_time_s: Option<f64>) -> anyhow::Result<Self> {
         let mut cfg = BenchConfig::from_file(file)?;
+        anyhow::ensure!(
+            cfg.localize.is_empty(),
+            "{}: [[localize]] runs in benches (vinebench bench); a sweep does not run them yet: sweep the maps, then localise with a bench or vinebench localize",
+            file.display()
+        );
         if max_time_s.is_some() {
             cfg.max_time_s = max_time_s;
         }
@@ -502,6 +507,7 @@ impl Sweep {
                             drops: None,
                             base_dir: c.base_dir.clone(),
                             localize: None,
+                            world: None,
                         })
                         .collect(),
                     jobs,

@@ -216,6 +216,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
             drops: None,
             base_dir: cell.base_dir.clone(),
             localize: None,
+            world: None,
         }],
         jobs: 1,
         timeout: Duration::from_secs_f64(tasks.timeout_s),

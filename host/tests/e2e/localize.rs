@@ -322,3 +322,94 @@ fn lio_sam_localises_in_its_own_map_the_same_every_time() {
         );
     }
 }
+
+/// The bench form: `[[localize]]` entries run after the mapping runs, from their maps, in a
+/// world of their own (another growth stage) or the surveyed grid; the table gets their
+/// rows, and a misnamed map is one line before anything runs.
+#[test]
+fn a_bench_localises_in_the_maps_it_built() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let world = std::fs::read_to_string(workspace_root().join("configs/world.toml"))
+        .expect("configs/world.toml");
+    let stage4: String = world
+        .lines()
+        .map(|l| {
+            if l.starts_with("growth_stage =") {
+                "growth_stage = 4.0".to_owned()
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert_ne!(stage4, world, "configs/world.toml sets growth_stage");
+    std::fs::write(tmp.path().join("stage4.toml"), stage4).expect("write world");
+    let bench = |extra: &str| {
+        format!(
+            "scenarios = [\"s1\"]\nmax_time_s = 20.0\njobs = 2\n\n[[plugins]]\npath = \"{}\"\nlabel = \"c-odometry\"\n\n\
+             [[localize]]\nmap = \"s1/c-odometry\"\nscenario = \"s1\"\nworld = \"stage4.toml\"\nlabel = \"at-stage-4\"\n\n\
+             [[localize]]\nsurveyed = true\nplugin = \"amcl\"\nscenario = \"s1\"\n{extra}",
+            env!("VINEBENCH_C_ODOMETRY")
+        )
+    };
+    let file = tmp.path().join("bench.toml");
+    std::fs::write(&file, bench("")).expect("write bench");
+    let out = tmp.path().join("out");
+    let o = vinebench(&[
+        "bench".as_ref(),
+        file.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let table = text(&o.stdout);
+    for row in [
+        "| localised %",
+        "| ATE in map",
+        "| wrong lane s",
+        "at-stage-4",
+        "amcl-in-survey",
+    ] {
+        assert!(table.contains(row), "the table lacks {row}: {table}");
+    }
+    let staged = out.join("s1/at-stage-4");
+    let loc = json(&staged.join("metrics.json"))["localization"].clone();
+    assert_eq!(loc["success"], true, "{loc}");
+    assert_eq!(loc["carried_alignment"], true);
+    let spec = std::fs::read_to_string(staged.join("localization.toml")).expect("order");
+    assert!(
+        spec.contains("mapping_run = \"../../s1/c-odometry\""),
+        "{spec}"
+    );
+    let run_world = std::fs::read_to_string(staged.join("world.toml")).expect("world");
+    assert!(
+        run_world.contains("growth_stage = 4.0"),
+        "the stage-4 world was not used"
+    );
+    assert!(
+        json(&out.join("s1/amcl-in-survey/metrics.json"))["localization"]["poses"]
+            .as_u64()
+            .is_some_and(|n| n > 100)
+    );
+
+    std::fs::write(
+        &file,
+        bench("").replace("map = \"s1/c-odometry\"", "map = \"s3/c-odometry\""),
+    )
+    .expect("write bench");
+    let bad = tmp.path().join("bad");
+    let o = vinebench(&[
+        "bench".as_ref(),
+        file.as_os_str(),
+        "--out".as_ref(),
+        bad.as_os_str(),
+    ]);
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("localize[0]: map = \"s3/c-odometry\" is not a run of this bench"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+}
