@@ -4,7 +4,7 @@
 # stages 0, 2 and 4, plant variation 0 and 1, seeds 0-2 (one map per variation and seed),
 # and once kidnapped (S1, stage 2, variation 0, seed 0: carried 30 s ahead at 60 s).
 # Systems: lio-sam in its own saved keyframes; amcl in the world's surveyed grid of the
-# block at stage 2 (what a lab surveys once).
+# block at stage 2 (what a lab surveys once), globally and (amcl-guess) told its start.
 #   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
 #   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
 #   bash scripts/study-localization.sh --table       write docs/localization/study.md
@@ -17,7 +17,7 @@ cd "$(dirname "$0")/.."
 results=results/localization
 kept=docs/localization/runs
 vb=${VINEBENCH:-target/release/vinebench}
-all=(lio-sam amcl)
+all=(lio-sam amcl amcl-guess)
 
 world() { # world STAGE VARIATION -> the path of the paper's world at that stage and variation
     local file="$results/worlds/stage$1-var$2.toml"
@@ -56,6 +56,17 @@ localize() { # localize SYSTEM VAR SEED STAGE NAME [ARGS...]
     local map
     case $system in
         amcl) map=(--surveyed --survey-world "$(world 2 "$var")" --plugin amcl) ;;
+        # AMCL as a Thorvald's navigation starts it: told its start within AMCL's default
+        # initial spread (0.5 m, 15 deg), the start read off the global run's ground truth.
+        amcl-guess)
+            local gt="$results/loc/amcl/$name/s1/amcl/groundtruth.tum"
+            [ -f "$gt" ] || localize amcl "$var" "$seed" "$stage" "$name" "$@"
+            local guess
+            guess=$(python3 -c 'import math,sys
+line = next(l for l in open(sys.argv[1]) if l.strip() and not l.startswith("#"))
+t,x,y,z,qx,qy,qz,qw = map(float, line.split())
+print(f"{x},{y},{math.atan2(2*(qw*qz+qx*qy), 1-2*(qy*qy+qz*qz))},0.5,0.26")' "$gt")
+            map=(--surveyed --survey-world "$(world 2 "$var")" --plugin amcl "--initial-guess=$guess") ;;
         *) map=(--map "$(map_run "$system" "$var" "$seed")") ;;
     esac
     echo "localize $system $name" >&2
@@ -67,7 +78,16 @@ localize() { # localize SYSTEM VAR SEED STAGE NAME [ARGS...]
 }
 
 save() {
+    for dir in "$results"/map/*/*/s3/*/; do
+        case $dir in */latest/*) continue ;; esac
+        [ -f "$dir/metrics.json" ] || continue
+        key=$(basename "$(dirname "$(dirname "$dir")")")
+        system=$(basename "$dir")
+        mkdir -p "$kept/map/$system/$key"
+        cp "$dir/metrics.json" "$kept/map/$system/$key/"
+    done
     for dir in "$results"/loc/*/*/s1/*/; do
+        case $dir in */latest/*) continue ;; esac
         [ -f "$dir/metrics.json" ] || continue
         rel=${dir#"$results"/}
         dest="$kept/$rel"

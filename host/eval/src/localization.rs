@@ -435,9 +435,11 @@ pub fn evaluate_localization(
             .map(|k| holds[k])
             .fold(0.0, |a, b| a + b)
     });
+    // Poses stamped at the kidnapping (within a microsecond: stamps are whole nanoseconds
+    // carried in seconds) answer data from before it.
     let relocalized_after_s = kidnap_s.and_then(|t| {
         (0..kept.len())
-            .find(|&k| stamps[k] > t && correct[k])
+            .find(|&k| stamps[k] > t + 1e-6 && correct[k])
             .map(|k| stamps[k] - t)
     });
     let success = first_correct

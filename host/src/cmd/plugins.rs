@@ -23,8 +23,14 @@ pub fn run(args: &PluginsArgs) -> anyhow::Result<()> {
                     plugin_api::Mode::Online => "online",
                     plugin_api::Mode::Offline => "offline",
                 };
+                // Whether it can localise in a saved map (`vinebench localize`).
+                let localises = if p.requirements.can_localize {
+                    " localises"
+                } else {
+                    ""
+                };
                 crate::out!(
-                    "{}\t{}\t{} [{}]\t{}\t{}",
+                    "{}\t{}\t{} [{}]{localises}\t{}\t{}",
                     p.name,
                     p.version,
                     mode,
