@@ -45,10 +45,14 @@ pub enum Check {
     UnrequestedSensor,
     /// Stamps going backwards and repeating.
     OutOfOrder,
+    /// For a plugin that says it can localise (revision 4): the route's saved map (or, for
+    /// one that saves none, the world's surveyed grid), the plugin started from it and fed
+    /// the route again, every pose with a status.
+    Localize,
 }
 
 impl Check {
-    pub const ALL: [Check; 8] = [
+    pub const ALL: [Check; 9] = [
         Check::Load,
         Check::Create,
         Check::Route,
@@ -57,6 +61,7 @@ impl Check {
         Check::NanInput,
         Check::UnrequestedSensor,
         Check::OutOfOrder,
+        Check::Localize,
     ];
 
     pub fn name(self) -> &'static str {
@@ -69,6 +74,7 @@ impl Check {
             Check::NanInput => "nan-input",
             Check::UnrequestedSensor => "unrequested-sensor",
             Check::OutOfOrder => "out-of-order",
+            Check::Localize => "localize",
         }
     }
 
@@ -334,6 +340,9 @@ struct Probe<'a> {
     out: &'a mut dyn std::io::Write,
     poses: usize,
     calls: usize,
+    /// Poses answered with each status (`PluginInstance::status`).
+    localized: usize,
+    searching: usize,
 }
 
 impl Probe<'_> {
@@ -442,18 +451,46 @@ fn check_in_process(
     let config = sim::SimConfig::load(subject.world.as_deref())
         .map_err(|e| Failure(format!("the world: {e}")))?;
     let rig = crate::rig::rig(&config);
+    if check == Check::Localize {
+        return check_localize(&plugin, &requirements, subject, &config, &rig, out);
+    }
     at(out, "create");
-    let instance = plugin
-        .create(&subject.params_toml, &rig)
-        .map_err(|e| Failure(format!("create failed: {e}")))?;
+    let instance = match plugin.create(&subject.params_toml, &rig) {
+        Ok(instance) => instance,
+        // A plugin that only localises (amcl) is checked localising in the surveyed grid.
+        Err(e) if requirements.can_localize => {
+            at(
+                out,
+                "create failed; create_localizing in the world's surveyed grid",
+            );
+            let world = sim::world::World::from_config(&config);
+            let grid = crate::runner::localize::surveyed_grid(&config, &world).to_map_bytes();
+            let start = plugin_api::MapStart {
+                map: &grid,
+                format: plugin_api::GRID_MAP_FORMAT,
+                format_version: plugin_api::GRID_MAP_VERSION,
+                initial_guess: None,
+            };
+            plugin
+                .create_localizing(&subject.params_toml, &rig, &start)
+                .map_err(|l| {
+                    Failure(format!(
+                        "create failed: {e}; and localising in the surveyed grid: {l}"
+                    ))
+                })?
+        }
+        Err(e) => return Err(Failure(format!("create failed: {e}"))),
+    };
     let mut probe = Probe {
         instance,
         out,
         poses: 0,
         calls: 0,
+        localized: 0,
+        searching: 0,
     };
     match check {
-        Check::Load => unreachable!("answered above"),
+        Check::Load | Check::Localize => unreachable!("answered above"),
         Check::Create => Ok("created and destroyed".into()),
         Check::Route => {
             let (fed, last) =
@@ -509,6 +546,94 @@ fn check_in_process(
     }
 }
 
+/// [`Check::Localize`]: the route mapped and its map saved (a plugin that saves none, or
+/// cannot map, gets the world's surveyed grid), then the plugin started from that map and fed
+/// the route again; it must start, answer with finite poses, and say a status with each.
+fn check_localize(
+    plugin: &plugin_api::LoadedPlugin,
+    requirements: &Requirements,
+    subject: &Subject,
+    config: &sim::SimConfig,
+    rig: &Rig,
+    out: &mut dyn std::io::Write,
+) -> Result<String, Failure> {
+    if !requirements.can_localize {
+        return Ok("does not say it can localise (can_localize): nothing to check".into());
+    }
+    at(out, "create, to map the route");
+    let saved = match plugin.create(&subject.params_toml, rig) {
+        Ok(instance) => {
+            let mut probe = Probe {
+                instance,
+                out: &mut *out,
+                poses: 0,
+                calls: 0,
+                localized: 0,
+                searching: 0,
+            };
+            lead_in(&mut probe, subject, config, requirements, subject.route_s)?;
+            at(probe.out, "finish, for the saved map");
+            let output = probe
+                .instance
+                .finish()
+                .map_err(|e| Failure(format!("finish of the mapping route failed: {e}")))?;
+            if let Some(m) = &output.saved_map
+                && m.format.trim().is_empty()
+            {
+                return Err(Failure("the saved map's format has no name".into()));
+            }
+            output.saved_map
+        }
+        // A plugin that only localises (amcl) maps nothing.
+        Err(_) => None,
+    };
+    let (bytes, format, version, what) = match saved {
+        Some(m) => {
+            let what = format!(
+                "its map ({} version {}, {} bytes)",
+                m.format,
+                m.version,
+                m.bytes.len()
+            );
+            (m.bytes, m.format, m.version, what)
+        }
+        None => {
+            let world = sim::world::World::from_config(config);
+            let grid = crate::runner::localize::surveyed_grid(config, &world);
+            (
+                grid.to_map_bytes(),
+                plugin_api::GRID_MAP_FORMAT.to_owned(),
+                plugin_api::GRID_MAP_VERSION,
+                "the world's surveyed grid (it saved no map)".to_owned(),
+            )
+        }
+    };
+    at(out, "create_localizing");
+    let start = plugin_api::MapStart {
+        map: &bytes,
+        format: &format,
+        format_version: version,
+        initial_guess: None,
+    };
+    let instance = plugin
+        .create_localizing(&subject.params_toml, rig, &start)
+        .map_err(|e| Failure(format!("could not start from {what}: {e}")))?;
+    let mut probe = Probe {
+        instance,
+        out,
+        poses: 0,
+        calls: 0,
+        localized: 0,
+        searching: 0,
+    };
+    let (fed, _) = lead_in(&mut probe, subject, config, requirements, subject.route_s)?;
+    let finish = probe.finish(true)?;
+    Ok(format!(
+        "started from {what}; {fed} messages, {} poses ({} localised, {} searching); {finish}",
+        probe.poses, probe.localized, probe.searching
+    ))
+}
+
 /// Feeds the first `seconds` of the route with the plugin's own sensors; the messages fed
 /// and the last stamp. Any error fails: a plugin must run a normal route.
 fn lead_in(
@@ -550,6 +675,10 @@ fn lead_in(
         let mut error = None;
         if judge(answer, &input, &mut error)? {
             probe.poses += 1;
+            match probe.instance.status() {
+                plugin_api::PoseStatus::Localized => probe.localized += 1,
+                plugin_api::PoseStatus::Searching => probe.searching += 1,
+            }
         }
         if let Some(e) = error {
             return Err(Failure(format!("failed on {input}: {e}")));
@@ -783,7 +912,11 @@ fn edge_input(check: Check, rig: &Rig, kinds: &[SensorKind], last_ns: i64) -> Ve
                 inputs.push(message(rig, kind, again, 64, &plain, "a"));
                 inputs.push(message(rig, kind, again, 64, &plain, "a repeated-stamp"));
             }
-            Check::Load | Check::Create | Check::Route | Check::FinishWithoutData => {}
+            Check::Load
+            | Check::Create
+            | Check::Route
+            | Check::FinishWithoutData
+            | Check::Localize => {}
         }
     }
     if check == Check::UnrequestedSensor {

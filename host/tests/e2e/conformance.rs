@@ -47,7 +47,7 @@ fn verdicts(stdout: &str) -> Vec<(String, String, String)> {
         .collect()
 }
 
-const CHECKS: [&str; 8] = [
+const CHECKS: [&str; 9] = [
     "load",
     "create",
     "route",
@@ -56,6 +56,7 @@ const CHECKS: [&str; 8] = [
     "nan-input",
     "unrequested-sensor",
     "out-of-order",
+    "localize",
 ];
 
 /// Every check listed, passed, in order.
@@ -70,7 +71,7 @@ fn assert_all_pass(what: &str, code: Option<i32>, stdout: &str, stderr: &str) {
         );
     }
     assert_eq!(code, Some(0), "{what}: exit code\n{stdout}{stderr}");
-    assert!(stdout.contains("8 of 8 checks passed"), "{what}: {stdout}");
+    assert!(stdout.contains("9 of 9 checks passed"), "{what}: {stdout}");
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -104,6 +105,19 @@ fn one_fixture_per_door_passes_the_same_conformance_list() {
     assert!(
         out.contains("[wheel_odometry, imu, lidar, scan2d, rgbd]"),
         "{out}"
+    );
+    // Revision 4: it saved its map, started from it, and said "searching" for its first 10
+    // poses (VB_POSE_SEARCHING) and "localised" after.
+    let localize = verdicts(&out)
+        .into_iter()
+        .find(|(_, n, _)| n == "localize")
+        .expect("localize");
+    assert!(
+        localize
+            .2
+            .starts_with("started from its map (odometry-end version 1, 24 bytes)")
+            && localize.2.contains("391 localised, 10 searching"),
+        "{localize:?}"
     );
 
     let venv = workspace_root().join("target/python-bridge-venv");
