@@ -3,8 +3,9 @@
 # `typical` profile, a map built on S3 at growth stage 2; each system localises on S1 at
 # stages 0, 2 and 4, plant variation 0 and 1, seeds 0-2 (one map per variation and seed),
 # and once kidnapped (S1, stage 2, variation 0, seed 0: carried 30 s ahead at 60 s).
-# Systems: lio-sam in its own saved keyframes; amcl in the world's surveyed grid of the
-# block at stage 2 (what a lab surveys once), globally and (amcl-guess) told its start.
+# Systems: lio-sam in its own saved keyframes; rtabmap in its saved locations (its
+# localisation mode); amcl in the world's surveyed grid of the block at stage 2 (what a lab
+# surveys once), globally and (amcl-guess) told its start.
 #   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
 #   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
 #   bash scripts/study-localization.sh --table       write docs/localization/study.md
@@ -17,7 +18,7 @@ cd "$(dirname "$0")/.."
 results=results/localization
 kept=docs/localization/runs
 vb=${VINEBENCH:-target/release/vinebench}
-all=(lio-sam amcl amcl-guess)
+all=(lio-sam amcl amcl-guess rtabmap)
 
 world() { # world STAGE VARIATION -> the path of the paper's world at that stage and variation
     local file="$results/worlds/stage$1-var$2.toml"
@@ -41,8 +42,10 @@ map_run() { # map_run SYSTEM VAR SEED -> the mapping run's folder
     local dir="$results/map/$1/var$2-seed$3"
     if ! [ -f "$dir/s3/$1/metrics.json" ]; then
         rm -rf "$dir"
+        local params=()
+        [ -f "configs/$1.toml" ] && params=(--plugin-config "configs/$1.toml")
         nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile typical --scenario s3 \
-            --seed "$3" --plugin "$1" --out "$dir" >&2
+            --seed "$3" --plugin "$1" "${params[@]}" --out "$dir" >&2
     fi
     echo "$dir/s3/$1"
 }

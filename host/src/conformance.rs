@@ -345,7 +345,18 @@ struct Probe<'a> {
     searching: usize,
 }
 
-impl Probe<'_> {
+impl<'a> Probe<'a> {
+    fn new(instance: PluginInstance, out: &'a mut dyn std::io::Write) -> Self {
+        Self {
+            instance,
+            out,
+            poses: 0,
+            calls: 0,
+            localized: 0,
+            searching: 0,
+        }
+    }
+
     /// Feeds `message` described by `input`; `Some(error)` if the plugin answered with one.
     fn feed(
         &mut self,
@@ -481,14 +492,7 @@ fn check_in_process(
         }
         Err(e) => return Err(Failure(format!("create failed: {e}"))),
     };
-    let mut probe = Probe {
-        instance,
-        out,
-        poses: 0,
-        calls: 0,
-        localized: 0,
-        searching: 0,
-    };
+    let mut probe = Probe::new(instance, out);
     match check {
         Check::Load | Check::Localize => unreachable!("answered above"),
         Check::Create => Ok("created and destroyed".into()),
@@ -563,14 +567,7 @@ fn check_localize(
     at(out, "create, to map the route");
     let saved = match plugin.create(&subject.params_toml, rig) {
         Ok(instance) => {
-            let mut probe = Probe {
-                instance,
-                out: &mut *out,
-                poses: 0,
-                calls: 0,
-                localized: 0,
-                searching: 0,
-            };
+            let mut probe = Probe::new(instance, &mut *out);
             lead_in(&mut probe, subject, config, requirements, subject.route_s)?;
             at(probe.out, "finish, for the saved map");
             let output = probe
@@ -618,14 +615,7 @@ fn check_localize(
     let instance = plugin
         .create_localizing(&subject.params_toml, rig, &start)
         .map_err(|e| Failure(format!("could not start from {what}: {e}")))?;
-    let mut probe = Probe {
-        instance,
-        out,
-        poses: 0,
-        calls: 0,
-        localized: 0,
-        searching: 0,
-    };
+    let mut probe = Probe::new(instance, out);
     let (fed, _) = lead_in(&mut probe, subject, config, requirements, subject.route_s)?;
     let finish = probe.finish(true)?;
     Ok(format!(

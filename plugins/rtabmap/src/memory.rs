@@ -223,9 +223,27 @@ impl Memory {
     /// exactly once in each (RTAB-Map's unique-word matching), as (old's 3D point in its
     /// optical frame, new's pixel).
     pub fn correspondences(&self, old: u64, new: u64) -> (Vec<Vector3<f64>>, Vec<[f32; 2]>) {
-        let (a, b) = (self.location(old), self.location(new));
-        let unique = |l: &Location| {
-            let mut sorted: Vec<(WordId, usize)> = l.words.iter().copied().zip(0..).collect();
+        let b = self.location(new);
+        let words: Vec<Option<WordId>> = b.words.iter().copied().map(Some).collect();
+        self.correspondences_to(old, &words, &b.features)
+    }
+
+    /// [`Memory::correspondences`] of `old` against a signature not in memory: its words
+    /// (one per feature, `None` for a feature without one) and features.
+    pub fn correspondences_to(
+        &self,
+        old: u64,
+        words: &[Option<WordId>],
+        features: &Features,
+    ) -> (Vec<Vector3<f64>>, Vec<[f32; 2]>) {
+        let a = self.location(old);
+        let old_words: Vec<Option<WordId>> = a.words.iter().copied().map(Some).collect();
+        let unique = |words: &[Option<WordId>]| {
+            let mut sorted: Vec<(WordId, usize)> = words
+                .iter()
+                .zip(0..)
+                .filter_map(|(w, i)| w.map(|w| (w, i)))
+                .collect();
             sorted.sort_unstable();
             let mut out = Vec::new();
             for (k, &(w, i)) in sorted.iter().enumerate() {
@@ -237,7 +255,7 @@ impl Memory {
             }
             out
         };
-        let (ua, ub) = (unique(a), unique(b));
+        let (ua, ub) = (unique(&old_words), unique(words));
         let (mut object, mut pixels) = (Vec::new(), Vec::new());
         let (mut i, mut j) = (0, 0);
         while i < ua.len() && j < ub.len() {
@@ -247,7 +265,7 @@ impl Memory {
                 std::cmp::Ordering::Equal => {
                     if let Some(p) = a.features.points[ua[i].1] {
                         object.push(p);
-                        pixels.push(b.features.pixels[ub[j].1]);
+                        pixels.push(features.pixels[ub[j].1]);
                     }
                     i += 1;
                     j += 1;
@@ -255,5 +273,46 @@ impl Memory {
             }
         }
         (object, pixels)
+    }
+
+    /// Localisation mode (`Mem/IncrementalMemory = false`): every location of STM joins
+    /// WM (a loaded map's locations are all candidates), within the WM limit.
+    pub fn flush_short_term(&mut self) {
+        while let Some(oldest) = self.stm.pop_front() {
+            self.wm.insert(oldest);
+        }
+        if self.cfg.working_memory_limit > 0 {
+            while self.wm.len() > self.cfg.working_memory_limit {
+                self.transfer_oldest();
+            }
+        }
+    }
+
+    /// Localisation mode: a signature not added to memory, its features quantised into the
+    /// existing words (those without a word left out), run through the Bayes filter over
+    /// WM; its words (one per feature, `None` without) and the hypothesis above the
+    /// threshold, if any.
+    pub fn detect(&mut self, features: &Features) -> (Vec<Option<WordId>>, Option<Hypothesis>) {
+        let words = self.dictionary.quantize(&features.descriptors);
+        if self.wm.is_empty() {
+            return (words, None);
+        }
+        let known: Vec<WordId> = words.iter().flatten().copied().collect();
+        let wm = &self.wm;
+        let raw = self.dictionary.scores(&known, |s| !wm.contains(&s));
+        let mut scores: Vec<(u64, f64)> = wm.iter().map(|&i| (i, 0.0)).collect();
+        for (s, v) in raw {
+            if let Ok(k) = scores.binary_search_by_key(&s, |(i, _)| *i) {
+                scores[k].1 = v;
+            }
+        }
+        let (likelihood, virtual_likelihood) =
+            slam_common::place::bow::adjusted_likelihood(&scores);
+        let updated = self.bayes.update(&likelihood, virtual_likelihood);
+        let hypothesis = updated
+            .best()
+            .filter(|(_, p)| *p >= self.threshold)
+            .map(|(id, posterior)| Hypothesis { id, posterior });
+        (words, hypothesis)
     }
 }

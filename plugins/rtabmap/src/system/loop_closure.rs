@@ -222,7 +222,7 @@ impl Rtabmap {
 
     /// A scan's points (sensor frame, in scan order) that the odometry would register (on
     /// narrow objects, within the ICP range), in the base frame, planar.
-    fn scan_in_base(&self, scan: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
+    pub(super) fn scan_in_base(&self, scan: &[Vector2<f64>]) -> Vec<Vector2<f64>> {
         let base_from_scan = planar(&self.base_from_scan);
         let max = if self.cfg.icp.max_range_m > 0.0 {
             self.cfg.icp.max_range_m

@@ -1,12 +1,13 @@
 //! The plugin: odometry between messages, a location per second, loop closure and the graph.
 
+mod localization;
 mod location_log;
 mod loop_closure;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, OccupancyGrid, Parameters, PluginError, Pose, Requirements,
-    RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
+    Event, EventKind, Imu, LaserScan, MapStart, OccupancyGrid, Parameters, PluginError, Pose,
+    PoseStatus, Requirements, RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
 };
 use slam_common::maps::occupancy::OccupancyGridBuilder;
 use slam_common::registration::scan2d::points_from_ranges;
@@ -60,6 +61,10 @@ pub struct Rtabmap {
     odometry_lost: bool,
     /// Every location's update, kept when `locations_csv` is set.
     location_log: Option<LocationLog>,
+    /// Localisation mode (`vinebench localize`): the loaded map's state, and the poses
+    /// returned.
+    localizing: Option<localization::Localizing>,
+    localized_trajectory: Vec<Pose>,
 }
 
 /// Odometry at a camera frame.
@@ -80,8 +85,11 @@ impl Rtabmap {
         move |e| PluginError::new(format!("{what}: {e}"))
     }
 
-    /// `map_from_odom` as the graph last corrected it.
+    /// `map_from_odom` as the graph last corrected it (localising: as the last match set it).
     fn map_from_odom(&self) -> Isometry3<f64> {
+        if let Some(l) = &self.localizing {
+            return l.map_from_odom();
+        }
         match self.memory.last() {
             Some(l) => {
                 self.graph.pose(l.id).unwrap_or(l.odom_from_base) * l.odom_from_base.inverse()
@@ -92,12 +100,17 @@ impl Rtabmap {
 
     /// Records an odometry pose; returns it in the map frame.
     fn record(&mut self, stamp_ns: i64, odom_from_base: Isometry3<f64>) -> Pose {
+        let pose = Pose::new(stamp_ns, &(self.map_from_odom() * odom_from_base));
+        if self.localizing.is_some() {
+            self.localized_trajectory.push(pose);
+            return pose;
+        }
         self.records.push(Record {
             stamp_ns,
             odom_from_base,
             location: self.memory.last().map(|l| l.id),
         });
-        Pose::new(stamp_ns, &(self.map_from_odom() * odom_from_base))
+        pose
     }
 
     fn event(&mut self, stamp_ns: i64, kind: EventKind, detail: String) {
@@ -267,6 +280,37 @@ impl SlamSystem for Rtabmap {
             SensorKind::Scan2d,
             SensorKind::Imu,
         ])
+        .localizing()
+    }
+
+    /// RTAB-Map's localisation mode in a map a mapping run saved (`system::localization`).
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        if (start.format, start.format_version) != (localization::FORMAT, localization::VERSION) {
+            return Err(PluginError::new(format!(
+                "rtabmap reads {} version {} maps, not {} version {}",
+                localization::FORMAT,
+                localization::VERSION,
+                start.format,
+                start.format_version
+            )));
+        }
+        let mut system = Self::new(config_toml, rig)?;
+        system.load_map(start.map)?;
+        if let (Some(guess), Some(l)) = (
+            start.initial_guess.and_then(|g| g.map_from_base.isometry()),
+            &mut system.localizing,
+        ) {
+            // Odometry starts at the identity: the guess is `map_from_odom`.
+            l.guess(guess);
+        }
+        Ok(system)
+    }
+
+    fn status(&self) -> PoseStatus {
+        match &self.localizing {
+            Some(l) if !l.localized() => PoseStatus::Searching,
+            _ => PoseStatus::Localized,
+        }
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
@@ -310,6 +354,8 @@ impl SlamSystem for Rtabmap {
             lost_since_location: false,
             odometry_lost: false,
             location_log: cfg.locations_csv.as_ref().map(|_| LocationLog::default()),
+            localizing: None,
+            localized_trajectory: Vec::new(),
             cfg,
         })
     }
@@ -388,6 +434,17 @@ impl SlamSystem for Rtabmap {
         };
         let pose = online.then(|| self.record(stamp, odom_from_base));
         let can_locate = features.is_some() || matches!(self.odometry, Odometry::WheelIcp(_));
+        if self.localizing.is_some() {
+            if can_locate && self.detection_due(stamp, &odom_from_base) {
+                let features = match features {
+                    Some(f) => f,
+                    None => extract(&image, &self.cfg.features)
+                        .map_err(|e| PluginError::new(e.to_string()))?,
+                };
+                self.detect_in_map(stamp, odom_from_base, features)?;
+            }
+            return Ok(pose);
+        }
         if can_locate && self.location_due(stamp, &odom_from_base) {
             let features = match features {
                 Some(f) => f,
@@ -405,6 +462,19 @@ impl SlamSystem for Rtabmap {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        if let Some(l) = &self.localizing {
+            eprintln!(
+                "rtabmap: localising in {} locations: {} detections, {} matched by appearance, {} by proximity",
+                self.memory.locations().len(),
+                l.detections,
+                l.appearance,
+                l.proximity
+            );
+            return Ok(SlamOutput {
+                trajectory: std::mem::take(&mut self.localized_trajectory),
+                ..SlamOutput::default()
+            });
+        }
         if let Some(path) = &self.cfg.profile_csv {
             self.graph
                 .backend
@@ -459,7 +529,7 @@ impl SlamSystem for Rtabmap {
                 cells: g.cells,
             }),
             events: std::mem::take(&mut self.events),
-            saved_map: None,
+            saved_map: Some(self.saved_map()),
         })
     }
 }
