@@ -42,10 +42,9 @@ map_run() { # map_run SYSTEM VAR SEED -> the mapping run's folder
     local dir="$results/map/$1/var$2-seed$3"
     if ! [ -f "$dir/s3/$1/metrics.json" ]; then
         rm -rf "$dir"
-        local params=()
-        [ -f "configs/$1.toml" ] && params=(--plugin-config "configs/$1.toml")
+        # Every system with its defaults, as the paper bench runs it (configs/paper.toml).
         nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile typical --scenario s3 \
-            --seed "$3" --plugin "$1" "${params[@]}" --out "$dir" >&2
+            --seed "$3" --plugin "$1" --out "$dir" >&2
     fi
     echo "$dir/s3/$1"
 }
