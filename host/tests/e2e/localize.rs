@@ -413,3 +413,51 @@ fn a_bench_localises_in_the_maps_it_built() {
     );
     assert!(!bad.exists());
 }
+
+/// rtabmap saves its locations and localises in them in its localisation mode (appearance
+/// hypotheses verified by PnP, then proximity by scan, no new location): on its mapping
+/// run's own route it localises within the first 10 m, with an ATE in the map frame within
+/// 20 % + 2 cm of the mapping run's.
+#[test]
+fn rtabmap_localises_in_its_saved_locations() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mapping = map_run(tmp.path(), "rtabmap", &plugin_lib("rtabmap"), "");
+    let head = text(&std::fs::read(mapping.join("map.bin")).expect("map.bin"));
+    assert!(
+        head.contains("plugin = \"rtabmap\"") && head.contains("format = \"rtabmap-locations\""),
+        "{}",
+        &head[..head.len().min(300)]
+    );
+    let out = tmp.path().join("loc");
+    let o = localize(
+        &out,
+        &[
+            "--map",
+            mapping.to_str().expect("utf-8"),
+            "--scenario",
+            "s1",
+            "--max-time",
+            ROUTE,
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let run = out.join("s1").join("rtabmap");
+    let loc = json(&run.join("metrics.json"))["localization"].clone();
+    assert_eq!(loc["success"], true, "{loc}");
+    assert!(
+        loc["first_correct_travel_m"].as_f64().expect("localised") < 10.0,
+        "{loc}"
+    );
+    let statuses = statuses(&run);
+    assert_eq!(
+        statuses[0], "searching",
+        "no match before the first detection"
+    );
+    let ate = loc["ate_map_frame"]["rmse"].as_f64().expect("ATE");
+    let own = json(&mapping.join("metrics.json"))["online_ape"]["rmse"]
+        .as_f64()
+        .expect("the mapping run's ATE");
+    assert!(ate <= 1.2 * own + 0.02, "{ate} m against {own} m");
+    let log = std::fs::read_to_string(run.join("worker.log")).expect("worker.log");
+    assert!(log.contains("matched by appearance"), "{log}");
+}
