@@ -12,6 +12,7 @@
 //! - `ply/`: RUN_DIR's `map.ply`, its first points, written by `results::write_ply`;
 //! - `report_maps/`: RUN_DIR's map, its first points, with a small occupancy grid written by
 //!   `results::write_grid`, as the `report_maps` target reads them;
+//! - `saved_map/`: two `map.bin` files, three keyframes of those points and that grid;
 //! - `events_json/`, `events_toml/`: events of every kind, written by `RunFolder` (as the
 //!   plugin sent them and as judged) and as a plugin's `[[events]]` TOML;
 //! - `run_json/`: a sweep's `cell.json`, filed by `sweep::file_run`;
@@ -117,7 +118,45 @@ fn map(run: &Path, out: &Path) -> Result<()> {
         &std::fs::read(&pgm)?,
         &std::fs::read(&yaml)?,
     );
-    write(out, "report_maps", "map-and-grid.bin", &maps)
+    write(out, "report_maps", "map-and-grid.bin", &maps)?;
+    // Saved maps (`map.bin`): a lidar system's keyframes and the host's grid, as the worker
+    // writes them.
+    let keyframes = slam_common::maps::keyframes::KeyframeMap {
+        keyframes: (0..3)
+            .map(|k| slam_common::maps::keyframes::MapKeyframe {
+                map_from_sensor: nalgebra::Isometry3::new(
+                    nalgebra::Vector3::new(f64::from(k), 0.5, 0.0),
+                    nalgebra::Vector3::new(0.0, 0.0, 0.1 * f64::from(k)),
+                ),
+                points: whole.iter().take(20).copied().collect(),
+            })
+            .collect(),
+    };
+    let saved = |format: &str, bytes: Vec<u8>| plugin_api::SavedMap {
+        format: format.into(),
+        version: 1,
+        bytes,
+    };
+    write(
+        out,
+        "saved_map",
+        "keyframes.bin",
+        &vinebench::results::map_file::encode_map(
+            "lio-sam",
+            "0.1.0",
+            &saved("keyframe-clouds", keyframes.to_bytes()),
+        ),
+    )?;
+    write(
+        out,
+        "saved_map",
+        "grid.bin",
+        &vinebench::results::map_file::encode_map(
+            "amcl",
+            "0.1.0",
+            &saved("vinebench-grid", grid.to_map_bytes()),
+        ),
+    )
 }
 
 fn events(out: &Path) -> Result<()> {

@@ -45,7 +45,20 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("c_door_output", c_door_output),
     ("c_door_answers", c_door_answers),
     ("python_door_output", python_door_output),
+    ("saved_map", saved_map),
 ];
+
+/// A `map.bin` as `vinebench localize` reads it (`results::map_file`): the head and its
+/// checks, then the payload as the two formats parsed in this workspace read it (lio-sam's
+/// `keyframe-clouds`, the host's `vinebench-grid`); the raw bytes through both as well.
+pub fn saved_map(data: &[u8]) {
+    if let Ok((_, payload)) = vinebench::results::map_file::decode_map(data, "map.bin", None) {
+        let _ = slam_common::maps::keyframes::KeyframeMap::from_bytes(&payload);
+        let _ = plugin_api::OccupancyGrid::from_map_bytes(&payload);
+    }
+    let _ = slam_common::maps::keyframes::KeyframeMap::from_bytes(data);
+    let _ = plugin_api::OccupancyGrid::from_map_bytes(data);
+}
 
 /// The C door's host side reading what a C plugin's `finish` hands back, built from the
 /// bytes: arrays with their lengths, NULLs with lengths, a grid, events TOML text
@@ -384,6 +397,7 @@ pub fn report_maps(data: &[u8]) {
         drift_percent: Some(0.5),
         estimate_xy: xy.clone(),
         max_time_s: None,
+        localization: None,
     };
     let detail = RunDetail {
         alignment: "se3".into(),
