@@ -275,17 +275,19 @@ impl Memory {
         (object, pixels)
     }
 
-    /// Localisation mode (`Mem/IncrementalMemory = false`): every location of STM joins
-    /// WM (a loaded map's locations are all candidates), within the WM limit.
-    pub fn flush_short_term(&mut self) {
-        while let Some(oldest) = self.stm.pop_front() {
-            self.wm.insert(oldest);
-        }
-        if self.cfg.working_memory_limit > 0 {
-            while self.wm.len() > self.cfg.working_memory_limit {
-                self.transfer_oldest();
-            }
-        }
+    /// Localisation mode (`Mem/IncrementalMemory = false`): a saved location loaded straight
+    /// into WM, its features quantised as when it was made (new words for new descriptors).
+    /// No memory limit applies: RTAB-Map would keep WM within its real-time limit and bring
+    /// the neighbours of a strong hypothesis back from LTM; without that retrieval here, a
+    /// map cut down to its last locations could never be recognised elsewhere, so the whole
+    /// map stays a candidate.
+    pub fn load(&mut self, mut location: Location) {
+        debug_assert_eq!(location.id, self.next_id());
+        location.words = self
+            .dictionary
+            .add_signature(location.id as SignatureId, &location.features.descriptors);
+        self.wm.insert(location.id);
+        self.locations.push(location);
     }
 
     /// Localisation mode: a signature not added to memory, its features quantised into the

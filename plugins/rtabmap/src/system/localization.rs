@@ -1,6 +1,6 @@
 //! RTAB-Map's localisation mode (`Mem/IncrementalMemory = false`; Labbé and Michaud, JFR
 //! 2019, §3 and the RTAB-Map wiki's "localization mode"): the saved map's locations are
-//! loaded into memory, and at the detection rate the current frame's signature is compared
+//! loaded into working memory, all of them (`Memory::load`: no retrieval from LTM here), and at the detection rate the current frame's signature is compared
 //! with them — the Bayes filter's appearance hypothesis verified by PnP on the words the two
 //! share, and proximity by scan (ICP of the current scan to a map location's near the
 //! estimate) — without ever adding a location to the map. Each accepted match gives the
@@ -220,18 +220,15 @@ impl Rtabmap {
                     Some(points)
                 }
             };
-            self.memory.add(
-                Location {
-                    id,
-                    stamp_ns,
-                    odom_from_base: pose,
-                    features,
-                    words: Vec::new(),
-                    scan,
-                    cloud: Vec::new(),
-                },
-                false,
-            );
+            self.memory.load(Location {
+                id,
+                stamp_ns,
+                odom_from_base: pose,
+                features,
+                words: Vec::new(),
+                scan,
+                cloud: Vec::new(),
+            });
             poses.push(pose);
         }
         if b.1 != bytes.len() {
@@ -240,7 +237,6 @@ impl Rtabmap {
                 bytes.len() - b.1
             )));
         }
-        self.memory.flush_short_term();
         self.localizing = Some(Localizing {
             map_poses: poses,
             ..Localizing::default()
