@@ -81,7 +81,7 @@ print(f"{x},{y},{math.atan2(2*(qw*qz+qx*qy), 1-2*(qy*qy+qz*qz))},0.5,0.26")' "$g
 
 save() {
     for dir in "$results"/map/*/*/s3/*/; do
-        case $dir in */latest/*) continue ;; esac
+        case $dir in */latest/*) continue ;; esac  # vinebench's link to the newest folder
         [ -f "$dir/metrics.json" ] || continue
         key=$(basename "$(dirname "$(dirname "$dir")")")
         system=$(basename "$dir")
