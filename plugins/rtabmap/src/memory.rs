@@ -163,28 +163,12 @@ impl Memory {
             comparisons: descriptors as u64 * vocabulary_words as u64,
             ..Update::default()
         };
-        let (mut posterior, mut hypothesis) = (None, None);
-        if detect && !self.wm.is_empty() {
-            let wm = &self.wm;
-            let raw = self
-                .dictionary
-                .scores(&location.words, |s| !wm.contains(&s));
-            // Every WM location, with 0 for those sharing no word.
-            let mut scores: Vec<(u64, f64)> = wm.iter().map(|&i| (i, 0.0)).collect();
-            for (s, v) in raw {
-                if let Ok(k) = scores.binary_search_by_key(&s, |(i, _)| *i) {
-                    scores[k].1 = v;
-                }
-            }
-            let (likelihood, virtual_likelihood) =
-                slam_common::place::bow::adjusted_likelihood(&scores);
-            let updated = self.bayes.update(&likelihood, virtual_likelihood);
-            hypothesis = updated
-                .best()
-                .filter(|(_, p)| *p >= self.threshold)
-                .map(|(id, posterior)| Hypothesis { id, posterior });
-            posterior = Some(updated);
-        }
+        let (posterior, hypothesis) = if detect && !self.wm.is_empty() {
+            let (updated, hypothesis) = self.filter(&location.words);
+            (Some(updated), hypothesis)
+        } else {
+            (None, None)
+        };
         self.locations.push(location);
         self.stm.push_back(id);
         while self.stm.len() > self.cfg.short_term_memory {
@@ -206,6 +190,27 @@ impl Memory {
         update.transferred = self.ltm - before;
         update.working_memory = self.wm.len();
         (posterior, hypothesis, update)
+    }
+
+    /// The Bayes filter updated with a signature's `words` against every WM location (0 for
+    /// those sharing no word), and the hypothesis above the threshold, if any.
+    fn filter(&mut self, words: &[WordId]) -> (Posterior, Option<Hypothesis>) {
+        let wm = &self.wm;
+        let raw = self.dictionary.scores(words, |s| !wm.contains(&s));
+        let mut scores: Vec<(u64, f64)> = wm.iter().map(|&i| (i, 0.0)).collect();
+        for (s, v) in raw {
+            if let Ok(k) = scores.binary_search_by_key(&s, |(i, _)| *i) {
+                scores[k].1 = v;
+            }
+        }
+        let (likelihood, virtual_likelihood) =
+            slam_common::place::bow::adjusted_likelihood(&scores);
+        let updated = self.bayes.update(&likelihood, virtual_likelihood);
+        let hypothesis = updated
+            .best()
+            .filter(|(_, p)| *p >= self.threshold)
+            .map(|(id, posterior)| Hypothesis { id, posterior });
+        (updated, hypothesis)
     }
 
     /// Moves the oldest WM location, if any, to LTM: out of the vocabulary (with the words
@@ -300,21 +305,7 @@ impl Memory {
             return (words, None);
         }
         let known: Vec<WordId> = words.iter().flatten().copied().collect();
-        let wm = &self.wm;
-        let raw = self.dictionary.scores(&known, |s| !wm.contains(&s));
-        let mut scores: Vec<(u64, f64)> = wm.iter().map(|&i| (i, 0.0)).collect();
-        for (s, v) in raw {
-            if let Ok(k) = scores.binary_search_by_key(&s, |(i, _)| *i) {
-                scores[k].1 = v;
-            }
-        }
-        let (likelihood, virtual_likelihood) =
-            slam_common::place::bow::adjusted_likelihood(&scores);
-        let updated = self.bayes.update(&likelihood, virtual_likelihood);
-        let hypothesis = updated
-            .best()
-            .filter(|(_, p)| *p >= self.threshold)
-            .map(|(id, posterior)| Hypothesis { id, posterior });
+        let (_, hypothesis) = self.filter(&known);
         (words, hypothesis)
     }
 }
