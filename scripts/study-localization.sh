@@ -4,7 +4,8 @@
 # stages 0, 2 and 4, plant variation 0 and 1, seeds 0-2 (one map per variation and seed),
 # and once kidnapped (S1, stage 2, variation 0, seed 0: carried 30 s ahead at 60 s).
 # Systems: lio-sam in its own saved keyframes; rtabmap in its saved locations (its
-# localisation mode); amcl in the world's surveyed grid of the block at stage 2 (what a lab
+# localisation mode); staticmapping in its saved submaps; orbslam2 in its keyframes and map
+# points (ORB-SLAM2's localisation mode); amcl in the world's surveyed grid of the block at stage 2 (what a lab
 # surveys once), globally and (amcl-guess) told its start.
 #   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
 #   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
@@ -18,7 +19,7 @@ cd "$(dirname "$0")/.."
 results=results/localization
 kept=docs/localization/runs
 vb=${VINEBENCH:-target/release/vinebench}
-all=(lio-sam amcl amcl-guess rtabmap)
+all=(lio-sam amcl amcl-guess rtabmap staticmapping orbslam2)
 
 world() { # world STAGE VARIATION -> the path of the paper's world at that stage and variation
     local file="$results/worlds/stage$1-var$2.toml"

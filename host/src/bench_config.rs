@@ -189,6 +189,13 @@ pub struct LocalizeEntry {
     pub initial_guess: Option<[f64; 5]>,
     /// `[at, skip]` seconds: carried `skip` seconds ahead along the route at `at`.
     pub kidnap: Option<[f64; 2]>,
+    /// Sweeps only: the axes (dotted paths, or `variant`) whose every value the localisation
+    /// runs take, each map crossed with them; on the other axes, and the seed, a
+    /// localisation run is its mapping run's. Empty: each map is localised in in its own
+    /// world. E.g. `cross = ["vineyard.growth_stage"]`: a map at every stage, localised at
+    /// every stage.
+    #[serde(default)]
+    pub cross: Vec<String>,
 }
 
 impl LocalizeEntry {
@@ -380,6 +387,14 @@ impl BenchConfig {
             if l.grid && l.surveyed {
                 bail!("{at}: grid and surveyed: give one");
             }
+            if self.is_sweep() && l.world.is_some() {
+                bail!(
+                    "{at}: world: in a sweep a localisation run's world is a point of the axes (cross = [...] names the axes it crosses)"
+                );
+            }
+            if !self.is_sweep() && !l.cross.is_empty() {
+                bail!("{at}: cross is for sweeps (seeds or [axes]); a bench names its world");
+            }
             l.spec()
                 .check()
                 .map_err(|why| anyhow::anyhow!("{at}: {why}"))?;
@@ -391,6 +406,38 @@ impl BenchConfig {
             }
         }
         Ok(())
+    }
+
+    /// The plugin of `[[localize]]` entry `i` as resolved: another plugin by name or path
+    /// with its own parameters, or the mapping run's with its parameters; `resolved` are
+    /// this file's `[[plugins]]` resolved, `file` this file.
+    pub fn localize_plugin(
+        &self,
+        i: usize,
+        resolved: &[ResolvedPlugin],
+        file: &Path,
+    ) -> anyhow::Result<(PathBuf, String, PathBuf)> {
+        let l = &self.localize[i];
+        match (&l.plugin, l.map_run()) {
+            (Some(p), _) => {
+                let dirs = crate::plugins::search_path(&self.plugin_dirs);
+                let library = crate::plugins::resolve(p, &dirs)
+                    .with_context(|| format!("{}: localize[{i}]", file.display()))?;
+                let base = resolved
+                    .first()
+                    .map(|r| r.base_dir.clone())
+                    .unwrap_or_else(|| PathBuf::from("."));
+                Ok((library, toml::to_string(&l.params)?, base))
+            }
+            (None, Some((_, label))) => {
+                let r = resolved
+                    .iter()
+                    .find(|r| r.label == label)
+                    .expect("checked when the file was read");
+                Ok((r.library.clone(), r.params_toml.clone(), r.base_dir.clone()))
+            }
+            (None, None) => unreachable!("checked when the file was read"),
+        }
     }
 
     /// The column label of `[[localize]]` entry `i`.

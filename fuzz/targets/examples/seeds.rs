@@ -246,6 +246,7 @@ fn cell(out: &Path) -> Result<()> {
             ("sensors.camera.noise".into(), "\"none\"".into()),
         ],
         world: "fedcba9876543210".into(),
+        localize: None,
     };
     std::fs::create_dir_all(sweep.path().join("runs"))?;
     let status = vinebench::results::RunStatus::Failed("timed out after 5 s".into());

@@ -78,26 +78,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     // The localisation runs, after the mapping runs (`bench_in` runs them second).
     let mut scenarios = cfg.scenarios.clone();
     for (i, l) in cfg.localize.iter().enumerate() {
-        let (plugin, params_toml, base_dir) = match (&l.plugin, l.map_run()) {
-            (Some(p), _) => {
-                let dirs = crate::plugins::search_path(&cfg.plugin_dirs);
-                let library = crate::plugins::resolve(p, &dirs)
-                    .with_context(|| format!("{}: localize[{i}]", args.file.display()))?;
-                let base = resolved
-                    .first()
-                    .map(|r| r.base_dir.clone())
-                    .unwrap_or_else(|| PathBuf::from("."));
-                (library, toml::to_string(&l.params)?, base)
-            }
-            (None, Some((_, label))) => {
-                let r = resolved
-                    .iter()
-                    .find(|r| r.label == label)
-                    .expect("checked when the file was read");
-                (r.library.clone(), r.params_toml.clone(), r.base_dir.clone())
-            }
-            (None, None) => unreachable!("checked when the file was read"),
-        };
+        let (plugin, params_toml, base_dir) = cfg.localize_plugin(i, &resolved, &args.file)?;
         let label = cfg.localize_label(i);
         runs.push(PlannedRun {
             scenario: l.scenario.clone(),

@@ -112,33 +112,50 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
                 },
             };
             let progress = Progress::new(missing.len(), None, at_once, true);
-            match args.executor {
-                Executor::Local => {
-                    crate::runner::interrupt::install();
-                    let jobs = args
-                        .jobs
-                        .or(sweep.cfg.jobs)
-                        .unwrap_or_else(crate::cmd::bench::default_jobs);
-                    unfiled = sweep::run_local(&sweep, &out, &missing, jobs, &|cell, outcome| {
-                        // Cells finish in any order; they weigh the same, so each
-                        // counts as the next unfinished one.
-                        progress.finished(usize::MAX, &cell.describe(), outcome)
-                    })?;
+            // The mapping runs first, then the localisation runs that start from their maps.
+            let (mapping, localizing): (Vec<&sweep::Cell>, Vec<&sweep::Cell>) =
+                missing.iter().partition(|c| c.localize.is_none());
+            let mut before = 0;
+            for phase in [mapping, localizing] {
+                if phase.is_empty() {
+                    continue;
                 }
-                Executor::Slurm => {
-                    let options = slurm::Options {
-                        at_once: args.jobs.unwrap_or(0),
-                        sbatch_args: args.sbatch_args.clone(),
-                    };
-                    let ids = slurm::submit(&sweep, &out, &missing, &options)?;
-                    crate::out!("submitted Slurm job array {}", ids.join(", "));
-                    slurm::wait(
-                        &ids,
-                        &out,
-                        &missing,
-                        Duration::from_secs_f64(args.poll_s),
-                        &|filed| progress.set(filed),
-                    )?;
+                let offset = before;
+                before += phase.len();
+                match args.executor {
+                    Executor::Local => {
+                        crate::runner::interrupt::install();
+                        let jobs = args
+                            .jobs
+                            .or(sweep.cfg.jobs)
+                            .unwrap_or_else(crate::cmd::bench::default_jobs);
+                        unfiled.extend(sweep::run_local(
+                            &sweep,
+                            &out,
+                            &phase,
+                            jobs,
+                            &|cell, outcome| {
+                                // Cells finish in any order; they weigh the same, so each
+                                // counts as the next unfinished one.
+                                progress.finished(usize::MAX, &cell.describe(), outcome)
+                            },
+                        )?);
+                    }
+                    Executor::Slurm => {
+                        let options = slurm::Options {
+                            at_once: args.jobs.unwrap_or(0),
+                            sbatch_args: args.sbatch_args.clone(),
+                        };
+                        let ids = slurm::submit(&sweep, &out, &phase, &options)?;
+                        crate::out!("submitted Slurm job array {}", ids.join(", "));
+                        slurm::wait(
+                            &ids,
+                            &out,
+                            &phase,
+                            Duration::from_secs_f64(args.poll_s),
+                            &|filed| progress.set(offset + filed),
+                        )?;
+                    }
                 }
             }
             progress.finish();

@@ -255,7 +255,7 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             rule += "---|";
         }
         let _ = writeln!(md, "{head}\n{rule}");
-        for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
+        for row in agg.mapping_rows(scenario) {
             let mut line = format!("| {} |", row.system);
             for (_, v) in &row.axes {
                 line += &format!(" {v} |");
@@ -273,6 +273,7 @@ pub fn render_markdown(agg: &Aggregate) -> String {
             }
         }
     }
+    md += &render_localization(agg);
     let failed: Vec<String> = failure_lines(agg)
         .iter()
         .map(|f| format!("- {f}"))
@@ -333,6 +334,83 @@ const COLOURS: [Rgb; 8] = [
 /// Axis values by path, as TOML text.
 type Point = Vec<(String, String)>;
 
+/// The headers of [`localization_cells`].
+pub const LOCALIZATION_HEADERS: [&str; 9] = [
+    "ok / failed / missing",
+    "success",
+    "first localised (s)",
+    "localised fraction",
+    "ATE in map frame (m)",
+    "false vs map",
+    "false vs truth",
+    "wrong lane (s)",
+    "relocalised after (s)",
+];
+
+/// A localisation row's cells after its axis values ([`LOCALIZATION_HEADERS`]): runs ok /
+/// failed / missing, the success rate (k of n and its 95 % Wilson interval), then mean ±
+/// std over the runs of time to the first localised pose, share of time localised, the
+/// localised poses' error in the map frame, false localisations (episodes per run) against
+/// the map and the truth, time in a wrong lane and time to relocalise after a kidnapping.
+pub fn localization_cells(row: &Row) -> [String; 9] {
+    let l = row.localization.clone().unwrap_or_default();
+    [
+        format!("{} / {} / {}", row.n_ok, row.n_failed, row.n_missing),
+        l.success.map_or("–".into(), |r| {
+            format!(
+                "{} of {} [{:.2}, {:.2}]",
+                r.k, r.n, r.interval95[0], r.interval95[1]
+            )
+        }),
+        pm(l.first_localized_s, 1),
+        pm(l.localized_fraction, 2),
+        pm(l.ate_map_frame_m, 3),
+        pm(l.false_vs_map, 1),
+        pm(l.false_vs_truth, 1),
+        pm(l.wrong_lane_s, 1),
+        pm(l.relocalized_after_s, 1),
+    ]
+}
+
+/// The localisation rows as a Markdown section (empty without any).
+fn render_localization(agg: &Aggregate) -> String {
+    let rows: Vec<&Row> = agg
+        .rows
+        .iter()
+        .filter(|r| r.localization.is_some())
+        .collect();
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut md = String::from(
+        "## Localisation\n\nRuns started from a map built by a mapping run of this sweep (the \
+         label's `@` names the map's point of the crossed axes) or from the surveyed grid. \
+         Success: the first correct pose within 10 m of travel. False localisations: \
+         episodes flagged localised more than 0.5 m or 10° off. Mean ± sample standard \
+         deviation over the runs.\n\n",
+    );
+    let mut head = "| scenario | system |".to_owned();
+    let mut rule = "|---|---|".to_owned();
+    for (path, _) in &agg.axes {
+        head += &format!(" {path} |");
+        rule += "---|";
+    }
+    for h in LOCALIZATION_HEADERS {
+        head += &format!(" {h} |");
+        rule += "---|";
+    }
+    let _ = writeln!(md, "{head}\n{rule}");
+    for row in rows {
+        let mut line = format!("| {} | {} |", row.scenario, row.system);
+        for (_, v) in &row.axes {
+            line += &format!(" {v} |");
+        }
+        let _ = writeln!(md, "{line} {} |", localization_cells(row).join(" | "));
+    }
+    md.push('\n');
+    md
+}
+
 /// ATE RMSE (mean, error bars ± one sample std over the seeds) against axis `k` on
 /// `scenario`: one line per system and value of the other axes (the system's colour,
 /// lighter for each further value), set side by side so that error bars do not hide
@@ -341,7 +419,7 @@ pub fn ate_chart(agg: &Aggregate, scenario: &str, k: usize) -> Option<Chart> {
     let (path, values) = &agg.axes[k];
     // One series per (system, point of the other axes).
     let mut series: BTreeMap<(usize, Point), Vec<(usize, Summary)>> = BTreeMap::new();
-    for row in agg.rows.iter().filter(|r| r.scenario == scenario) {
+    for row in agg.mapping_rows(scenario) {
         let Some(s) = row.ate_rmse_m else { continue };
         let system = agg.systems.iter().position(|x| *x == row.system)?;
         let x = values.iter().position(|v| *v == row.axes[k].1)?;

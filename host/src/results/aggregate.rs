@@ -71,6 +71,54 @@ pub struct Row {
     pub failures: Vec<String>,
     #[serde(skip)]
     pub speed: Speed,
+    /// A row of localisation runs (`[[localize]]`): their judgement over the seeds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub localization: Option<LocalizationSummary>,
+}
+
+/// A localisation row over its ok runs (issue 46; `eval::LocalizationReport` per run).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct LocalizationSummary {
+    /// Runs whose first correct pose came within 10 m of travel, of the ok runs, with the
+    /// rate's 95 % Wilson interval.
+    pub success: Option<eval::Rate>,
+    /// Seconds to the first pose flagged localised, over the runs that had one.
+    pub first_localized_s: Option<Summary>,
+    /// Share of the run's time flagged localised.
+    pub localized_fraction: Option<Summary>,
+    /// RMSE of the localised poses' error in the map frame, not re-aligned, metres, over the
+    /// runs with a localised pose.
+    pub ate_map_frame_m: Option<Summary>,
+    /// False localisations per run (episodes), judged against the map and against the
+    /// truth.
+    pub false_vs_map: Option<Summary>,
+    pub false_vs_truth: Option<Summary>,
+    /// Seconds localised in another lane than the truth's, per run.
+    pub wrong_lane_s: Option<Summary>,
+    /// After a kidnapping: seconds to the first correct pose, over the runs that had one.
+    pub relocalized_after_s: Option<Summary>,
+}
+
+impl LocalizationSummary {
+    /// The summary of these runs' reports.
+    pub fn of(reports: &[&eval::LocalizationReport]) -> Self {
+        let each = |f: &dyn Fn(&eval::LocalizationReport) -> Option<f64>| -> Option<Summary> {
+            summarize(&reports.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
+        };
+        Self {
+            success: eval::Rate::wilson(
+                reports.iter().filter(|r| r.success).count(),
+                reports.len(),
+            ),
+            first_localized_s: each(&|r| r.first_localized_s),
+            localized_fraction: each(&|r| Some(r.localized_fraction)),
+            ate_map_frame_m: each(&|r| r.ate_map_frame.as_ref().map(|s| s.rmse)),
+            false_vs_map: each(&|r| Some(r.false_vs_map.len() as f64)),
+            false_vs_truth: each(&|r| Some(r.false_vs_truth.len() as f64)),
+            wrong_lane_s: each(&|r| Some(r.wrong_lane_s)),
+            relocalized_after_s: each(&|r| r.relocalized_after_s),
+        }
+    }
 }
 
 /// What depends on the machine: kept out of `sweep.json` and `sweep.csv`.
@@ -95,6 +143,13 @@ pub struct Aggregate {
 }
 
 impl Aggregate {
+    /// The rows of mapping runs on `scenario` (not localisation runs).
+    pub fn mapping_rows<'a>(&'a self, scenario: &'a str) -> impl Iterator<Item = &'a Row> + 'a {
+        self.rows
+            .iter()
+            .filter(move |r| r.scenario == scenario && r.localization.is_none())
+    }
+
     /// Runs not in `runs/` yet, over all rows.
     pub fn missing(&self) -> usize {
         self.rows.iter().map(|r| r.n_missing).sum()

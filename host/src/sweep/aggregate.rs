@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use super::{Cell, Sweep, read_filed, run_dir, value_text};
-use crate::results::aggregate::{Aggregate, Row, Speed, summarize};
+use crate::results::aggregate::{Aggregate, LocalizationSummary, Row, Speed, summarize};
 use crate::results::{RunFolder, RunStatus};
 
 /// Reads the runs of every cell of `sweep` from `out/runs`.
@@ -33,6 +33,7 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
                     drift_percent: None,
                     failures: Vec::new(),
                     speed: Speed::default(),
+                    localization: None,
                 },
                 vec![cell],
             )),
@@ -46,6 +47,8 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
         let (mut joins, mut scale, mut drift) = (vec![], vec![], vec![]);
         // Runs judged for joins, and of those the ones with a false loop or a wrong join.
         let (mut judged, mut false_join) = (0, 0);
+        let localizing = cells.iter().any(|c| c.localize.is_some());
+        let mut reports = Vec::new();
         for cell in cells {
             let dir = run_dir(out, &cell.key);
             if !dir.exists() {
@@ -62,6 +65,9 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
             let run = RunFolder::new(&dir);
             let metrics = run.read_metrics()?;
             row.n_ok += 1;
+            if let Some(l) = metrics.localization {
+                reports.push(l.report);
+            }
             ate.push(metrics.ape.rmse);
             accepted.push(metrics.loops.accepted as f64);
             false_.push(metrics.loops.accepted_false as f64);
@@ -86,6 +92,8 @@ pub fn collect(sweep: &Sweep, out: &Path) -> anyhow::Result<Aggregate> {
         row.false_join_runs = eval::Rate::wilson(false_join, judged);
         row.sim3_scale = summarize(&scale);
         row.drift_percent = summarize(&drift);
+        row.localization =
+            localizing.then(|| LocalizationSummary::of(&reports.iter().collect::<Vec<_>>()));
         row.speed = Speed {
             realtime_factor: summarize(&rtf),
             cpu_s: summarize(&cpu),

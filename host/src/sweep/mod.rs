@@ -131,9 +131,77 @@ pub struct Cell {
     pub point: Vec<(String, String)>,
     /// The resolved world: `worlds/<world>.toml`.
     pub world: String,
+    /// A `[[localize]]` run: from which map (absent: a mapping run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub localize: Option<LocalizeCell>,
+}
+
+/// The map a sweep's localisation run starts from, and how it is started.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalizeCell {
+    /// The mapping run's cell key (`runs/<map>/`); absent for the world's surveyed grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map: Option<String>,
+    /// The mapping run's occupancy grid instead of its `map.bin`.
+    #[serde(default)]
+    pub grid: bool,
+    /// The surveyed grid's world file; absent: the run's own world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub survey_world: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_guess: Option<crate::runner::GuessSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kidnap: Option<crate::runner::Kidnap>,
+}
+
+impl LocalizeCell {
+    /// The worker's order in sweep folder `out`: the mapping run by its absolute path, so
+    /// that the run finds it from its work folder and after it is filed.
+    pub fn spec(&self, out: &Path) -> anyhow::Result<crate::runner::LocalizeSpec> {
+        use crate::runner::{LocalizeSpec, MapSource};
+        let mapping_run = self
+            .map
+            .as_ref()
+            .map(|key| std::path::absolute(run_dir(out, key)))
+            .transpose()?;
+        let map = match (&mapping_run, self.grid) {
+            (None, _) => MapSource::Surveyed {
+                world: self.survey_world.clone(),
+            },
+            (Some(dir), true) => MapSource::Grid {
+                yaml: dir.join(crate::results::files::GRID_YAML),
+            },
+            (Some(dir), false) => MapSource::Saved {
+                path: dir.join(crate::results::files::SAVED_MAP),
+            },
+        };
+        Ok(LocalizeSpec {
+            map,
+            mapping_run,
+            initial_guess: self.initial_guess,
+            kidnap: self.kidnap,
+        })
+    }
 }
 
 impl Cell {
+    /// The run of this cell in sweep folder `out`.
+    pub fn planned_run(&self, out: &Path) -> anyhow::Result<PlannedRun> {
+        Ok(PlannedRun {
+            scenario: self.scenario.clone(),
+            label: self.label.clone(),
+            plugin: self.plugin.clone(),
+            params_toml: self.params_toml.clone(),
+            pace: self.pace,
+            queue_size: self.queue_size.clone(),
+            drops: None,
+            base_dir: self.base_dir.clone(),
+            localize: self.localize.as_ref().map(|l| l.spec(out)).transpose()?,
+            world: None,
+        })
+    }
+
     /// `seed=1 vineyard.growth_stage=2`, for progress lines.
     pub fn describe(&self) -> String {
         let mut s = format!("{} {} seed={}", self.scenario, self.label, self.seed);
@@ -318,7 +386,8 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
                 .join(", ")
         );
         let world = sim::SimConfig::from_toml_str(&text, &origin)?;
-        for s in &cfg.scenarios {
+        let localized = cfg.localize.iter().map(|l| &l.scenario);
+        for s in cfg.scenarios.iter().chain(localized) {
             anyhow::ensure!(
                 world.scenarios.contains_key(s),
                 "{name}: unknown scenario '{s}' (known: {})",
@@ -346,15 +415,152 @@ pub fn expand(cfg: &BenchConfig, name: &str, base_world: &str) -> anyhow::Result
     })
 }
 
+/// The localisation cells of a sweep's `[[localize]]` entries: each entry's maps (the
+/// mapping cells of its `map = "scenario/label"`, or with `surveyed` every point and seed)
+/// crossed with every value of its `cross` axes, the other axes and the seed the map's.
+/// A crossed localisation run's label says where its map was built
+/// (`lio-sam-in-s3@growth_stage=2`).
+#[allow(clippy::too_many_arguments)]
+fn localize_cells(
+    cfg: &BenchConfig,
+    file: &Path,
+    plugins: &[crate::bench_config::ResolvedPlugin],
+    axes: &[Axis],
+    point_worlds: &[(Vec<toml::Value>, String)],
+    seeds: &[u64],
+    mapping: &[Cell],
+    max_time: &str,
+) -> anyhow::Result<Vec<Cell>> {
+    let name = file.display();
+    let mut out = Vec::new();
+    for (i, l) in cfg.localize.iter().enumerate() {
+        let crossed: Vec<usize> = l
+            .cross
+            .iter()
+            .map(|path| {
+                axes.iter().position(|a| &a.path == path).ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "{name}: localize[{i}]: cross: \"{path}\" is not an axis of this sweep (axes: {})",
+                        axes.iter()
+                            .map(|a| a.path.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })
+            })
+            .collect::<anyhow::Result<_>>()?;
+        let (library, params_toml, base_dir) = cfg.localize_plugin(i, plugins, file)?;
+        let plugin_hash = file_hash(&library)?;
+        let base_label = cfg.localize_label(i);
+        let spec = l.spec();
+        // The maps: (mapping cell, its point of the axes, its seed).
+        let maps: Vec<(Option<&Cell>, Vec<String>, u64)> = match l.map_run() {
+            Some((scenario, label)) if !l.surveyed => mapping
+                .iter()
+                .filter(|c| c.scenario == scenario && c.label == label)
+                .map(|c| {
+                    (
+                        Some(c),
+                        c.point.iter().map(|(_, v)| v.clone()).collect(),
+                        c.seed,
+                    )
+                })
+                .collect(),
+            _ => point_worlds
+                .iter()
+                .flat_map(|(point, _)| {
+                    seeds
+                        .iter()
+                        .map(move |&s| (None, point.iter().map(value_text).collect(), s))
+                })
+                .collect(),
+        };
+        anyhow::ensure!(
+            !maps.is_empty(),
+            "{name}: localize[{i}]: map = {:?} is not a run of this sweep (scenario/label)",
+            l.map.as_deref().unwrap_or_default()
+        );
+        for (map, map_point, seed) in &maps {
+            for (point, world) in point_worlds {
+                let text: Vec<String> = point.iter().map(value_text).collect();
+                let same = (0..axes.len()).all(|a| crossed.contains(&a) || text[a] == map_point[a]);
+                if !same {
+                    continue;
+                }
+                let label = if crossed.is_empty() || map.is_none() {
+                    base_label.clone()
+                } else {
+                    let at: Vec<String> = crossed
+                        .iter()
+                        .map(|&a| {
+                            let short = axes[a].path.rsplit('.').next().unwrap_or_default();
+                            format!("{short}={}", map_point[a])
+                        })
+                        .collect();
+                    format!("{base_label}@{}", at.join(","))
+                };
+                let cell = LocalizeCell {
+                    map: map.map(|m| m.key.clone()),
+                    grid: l.grid,
+                    survey_world: match &spec.map {
+                        crate::runner::MapSource::Surveyed { world } => world.clone(),
+                        _ => None,
+                    },
+                    initial_guess: spec.initial_guess,
+                    kidnap: spec.kidnap,
+                };
+                let survey_hash = cell
+                    .survey_world
+                    .as_ref()
+                    .map(|w| file_hash(w))
+                    .transpose()?
+                    .unwrap_or_default();
+                let resolved = format!(
+                    "vinebench-sweep-localize 1\nscenario {:?}\nseed {seed}\nplugin {plugin_hash}\n\
+                     params {params_toml:?}\nworld {world}\nmax_time {max_time}\nalign {:?}\n\
+                     timeout {:?}\nmemory {}\nmap {:?}\ngrid {}\nsurvey {survey_hash}\n\
+                     guess {:?}\nkidnap {:?}\n",
+                    l.scenario,
+                    cfg.align,
+                    cfg.timeout_s,
+                    cfg.memory_limit_mb,
+                    cell.map,
+                    cell.grid,
+                    cell.initial_guess,
+                    cell.kidnap,
+                );
+                out.push(Cell {
+                    key: short_hash(resolved.as_bytes()),
+                    scenario: l.scenario.clone(),
+                    label,
+                    plugin: library.clone(),
+                    params_toml: params_toml.clone(),
+                    pace: crate::runner::Pace::Free,
+                    queue_size: None,
+                    base_dir: Some(base_dir.clone()),
+                    seed: *seed,
+                    point: axes
+                        .iter()
+                        .zip(&text)
+                        .map(|(a, v)| (a.path.clone(), v.clone()))
+                        .collect(),
+                    world: world.clone(),
+                    localize: Some(cell),
+                });
+            }
+        }
+    }
+    anyhow::ensure!(
+        mapping.len() + out.len() <= MAX_CELLS,
+        "{name}: the mapping and localisation runs are more than {MAX_CELLS}; split the sweep"
+    );
+    Ok(out)
+}
+
 impl Sweep {
     /// Reads and expands a sweep file; `max_time_s` (`--max-time`) overrides the file's.
     pub fn load(file: &Path, max_time_s: Option<f64>) -> anyhow::Result<Self> {
         let mut cfg = BenchConfig::from_file(file)?;
-        anyhow::ensure!(
-            cfg.localize.is_empty(),
-            "{}: [[localize]] runs in benches (vinebench bench); a sweep does not run them yet: sweep the maps, then localise with a bench or vinebench localize",
-            file.display()
-        );
         if max_time_s.is_some() {
             cfg.max_time_s = max_time_s;
         }
@@ -421,11 +627,23 @@ impl Sweep {
                                 .map(|(a, v)| (a.path.clone(), value_text(v)))
                                 .collect(),
                             world: world.clone(),
+                            localize: None,
                         });
                     }
                 }
             }
         }
+        let localizing = localize_cells(
+            &cfg,
+            file,
+            &plugins,
+            &axes,
+            &point_worlds,
+            &seeds,
+            &cells,
+            &max_time,
+        )?;
+        cells.extend(localizing);
         Ok(Self {
             file: file.to_owned(),
             cfg,
@@ -473,7 +691,12 @@ impl Sweep {
 
     /// One plan per (world, seed) for the given cells, in order of first appearance, so
     /// that the runs of a scenario may share its simulation.
-    pub fn plans(&self, out: &Path, cells: &[&Cell], jobs: usize) -> Vec<(Plan, Vec<Cell>)> {
+    pub fn plans(
+        &self,
+        out: &Path,
+        cells: &[&Cell],
+        jobs: usize,
+    ) -> anyhow::Result<Vec<(Plan, Vec<Cell>)>> {
         let mut groups: Vec<((String, u64), Vec<Cell>)> = Vec::new();
         for c in cells {
             let k = (c.world.clone(), c.seed);
@@ -491,36 +714,27 @@ impl Sweep {
                         scenarios.push(c.scenario.clone());
                     }
                 }
-                let plan = Plan {
-                    world: Some(out.join("worlds").join(format!("{world}.toml"))),
-                    seed,
-                    scenarios,
-                    runs: cells
-                        .iter()
-                        .map(|c| PlannedRun {
-                            scenario: c.scenario.clone(),
-                            label: c.label.clone(),
-                            plugin: c.plugin.clone(),
-                            params_toml: c.params_toml.clone(),
-                            pace: c.pace,
-                            queue_size: c.queue_size.clone(),
-                            drops: None,
-                            base_dir: c.base_dir.clone(),
-                            localize: None,
-                            world: None,
-                        })
-                        .collect(),
-                    jobs,
-                    timeout: Duration::from_secs_f64(self.cfg.timeout_s),
-                    memory_limit_mb: self.cfg.memory_limit_mb,
-                    alignment: self.cfg.align.into(),
-                    dataset: None,
-                    max_time_s: self.cfg.max_time_s,
-                    share_simulation: self.cfg.share_simulation,
-                    record_once: self.cfg.record_once.then(|| out.join(RECORDINGS)),
-                    bars: false,
-                };
-                (plan, cells)
+                Ok((
+                    Plan {
+                        world: Some(out.join("worlds").join(format!("{world}.toml"))),
+                        seed,
+                        scenarios,
+                        runs: cells
+                            .iter()
+                            .map(|c| c.planned_run(out))
+                            .collect::<anyhow::Result<_>>()?,
+                        jobs,
+                        timeout: Duration::from_secs_f64(self.cfg.timeout_s),
+                        memory_limit_mb: self.cfg.memory_limit_mb,
+                        alignment: self.cfg.align.into(),
+                        dataset: None,
+                        max_time_s: self.cfg.max_time_s,
+                        share_simulation: self.cfg.share_simulation,
+                        record_once: self.cfg.record_once.then(|| out.join(RECORDINGS)),
+                        bars: false,
+                    },
+                    cells,
+                ))
             })
             .collect()
     }
@@ -615,7 +829,7 @@ pub fn run_local(
 ) -> anyhow::Result<Vec<String>> {
     let failures = std::sync::Mutex::new(Vec::new());
     let unfiled = std::sync::Mutex::new(Vec::new());
-    for (n, (plan, group)) in sweep.plans(out, cells, jobs).into_iter().enumerate() {
+    for (n, (plan, group)) in sweep.plans(out, cells, jobs)?.into_iter().enumerate() {
         let work = work_dir(out, &n.to_string());
         let filed = |i: usize, outcome: &RunOutcome| {
             if let RunStatus::Failed(why) = &outcome.status {

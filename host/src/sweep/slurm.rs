@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{Cell, Sweep, file_run, run_dir, work_dir};
 use crate::results::{RunStatus, write_atomic};
-use crate::runner::{Plan, PlannedRun};
+use crate::runner::Plan;
 
 /// Slurm's default `MaxArraySize` is 1001: arrays of at most 1000 tasks.
 const ARRAY_MAX: usize = 1000;
@@ -206,18 +206,7 @@ pub fn run_task(tasks_path: &Path, index: usize) -> anyhow::Result<()> {
         world: Some(out.join("worlds").join(format!("{}.toml", cell.world))),
         seed: cell.seed,
         scenarios: vec![cell.scenario.clone()],
-        runs: vec![PlannedRun {
-            scenario: cell.scenario.clone(),
-            label: cell.label.clone(),
-            plugin: cell.plugin.clone(),
-            params_toml: cell.params_toml.clone(),
-            pace: cell.pace,
-            queue_size: cell.queue_size.clone(),
-            drops: None,
-            base_dir: cell.base_dir.clone(),
-            localize: None,
-            world: None,
-        }],
+        runs: vec![cell.planned_run(out)?],
         jobs: 1,
         timeout: Duration::from_secs_f64(tasks.timeout_s),
         memory_limit_mb: tasks.memory_limit_mb,

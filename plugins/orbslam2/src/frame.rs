@@ -113,6 +113,20 @@ impl Frame {
                 u_right[i] = f64::from(k.u) - camera.stereo.bf / d;
             }
         }
+        Self::from_parts(stamp_ns, camera, keys, descriptors, depth, u_right)
+    }
+
+    /// A frame from its keypoints, descriptors, and each keypoint's depth and right
+    /// coordinate (negative: none), as a saved map holds them; unmatched, at the identity.
+    pub fn from_parts(
+        stamp_ns: i64,
+        camera: &Camera,
+        keys: Vec<KeyPoint>,
+        descriptors: Vec<Descriptor>,
+        depth: Vec<f64>,
+        u_right: Vec<f64>,
+    ) -> Self {
+        let n = keys.len();
         let mut grid = vec![Vec::new(); GRID_COLS * GRID_ROWS];
         for (i, k) in keys.iter().enumerate() {
             if let Some(c) = cell_of(camera, f64::from(k.u), f64::from(k.v)) {

@@ -35,6 +35,7 @@ pub mod map;
 pub mod matcher;
 pub mod optimizer;
 pub mod orb;
+pub mod saved;
 mod system;
 pub mod tracking;
 pub mod triangulation;

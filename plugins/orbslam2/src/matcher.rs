@@ -417,14 +417,14 @@ pub fn fuse(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::orb::KeyPoint;
     use rand::{Rng, SeedableRng};
     use slam_common::factor_graph::ba::StereoCamera;
     use slam_common::place::vocabulary::{TrainConfig, Vocabulary};
 
-    fn camera() -> Camera {
+    pub(crate) fn camera() -> Camera {
         let scale_factors: Vec<f64> = (0..8).map(|l| 1.2f64.powi(l)).collect();
         Camera {
             stereo: StereoCamera {
@@ -447,7 +447,7 @@ mod tests {
     }
 
     /// 400 random keypoints with random descriptors at 2 m, and a vocabulary of them.
-    fn scene() -> (Camera, Frame, Vocabulary) {
+    pub(crate) fn scene() -> (Camera, Frame, Vocabulary) {
         let camera = camera();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let keys: Vec<KeyPoint> = (0..400)
@@ -477,7 +477,7 @@ mod tests {
     }
 
     /// A keyframe whose every keypoint has a map point from its depth.
-    fn keyframe(map: &mut Map, camera: &Camera, frame: &Frame) -> usize {
+    pub(crate) fn keyframe(map: &mut Map, camera: &Camera, frame: &Frame) -> usize {
         let kf = map.add_keyframe(frame.clone());
         for i in 0..frame.len() {
             let world = frame.unproject_world(camera, i).expect("depth");

@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 use plugin_api::{
-    Event, EventKind, Parameters, PluginError, Pose, Requirements, RgbdFrame, Rig, SensorKind,
-    SlamOutput, SlamSystem, Stages,
+    Event, EventKind, MapStart, Parameters, PluginError, Pose, PoseStatus, Requirements, RgbdFrame,
+    Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
 };
 use slam_common::factor_graph::ba::StereoCamera;
 use slam_common::place::vocabulary::Vocabulary;
@@ -17,6 +17,7 @@ use crate::local_mapping::LocalMapping;
 use crate::loop_closing::{LoopClosing, Verdict};
 use crate::map::Map;
 use crate::orb::OrbExtractor;
+use crate::saved::{ORB_MAP_FORMAT, ORB_MAP_VERSION};
 use crate::tracking::{Context, Outcome, Tracking};
 
 /// The vocabulary shipped with the plugin (see `plugins/orbslam2/vocabulary/README.md`).
@@ -49,6 +50,8 @@ pub struct OrbSlam2 {
     events: Vec<Event>,
     /// Durations of the pipeline's stages, for the summary printed at the end.
     stages: Stages,
+    /// Localisation mode: the poses returned, in the loaded map (`None` when mapping).
+    localizing: Option<Vec<Pose>>,
 }
 
 impl OrbSlam2 {
@@ -133,6 +136,22 @@ impl OrbSlam2 {
         }
     }
 
+    /// Localisation mode's answer to a frame: the tracked pose in the loaded map, or while
+    /// lost the last pose returned (the origin before any) for the host to see searching.
+    fn localized_pose(&mut self, stamp_ns: i64, frame: &Frame, outcome: &Outcome) -> Pose {
+        let poses = self.localizing.as_mut().expect("localisation mode");
+        let base = match outcome {
+            Outcome::Tracked { .. } => frame.camera_from_world.inverse() * self.camera_from_base,
+            _ => poses
+                .last()
+                .and_then(Pose::isometry)
+                .unwrap_or_else(Isometry3::identity),
+        };
+        let pose = Pose::new(stamp_ns, &base);
+        poses.push(pose);
+        pose
+    }
+
     /// A tracked frame's pose, kept relative to its reference keyframe so that the final
     /// trajectory follows the optimised keyframes (ORB-SLAM2's `mlRelativeFramePoses`).
     fn record_tracked(&mut self, stamp_ns: i64) -> Pose {
@@ -187,7 +206,39 @@ impl SlamSystem for OrbSlam2 {
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
     fn requirements() -> Requirements {
-        Requirements::online(&[SensorKind::Rgbd])
+        Requirements::online(&[SensorKind::Rgbd]).localizing()
+    }
+
+    /// ORB-SLAM2's localisation mode (`System::ActivateLocalizationMode`, Mur-Artal and
+    /// Tardós 2017, §III-F "Localization Mode"): local mapping and loop closing stopped,
+    /// tracking against the loaded map's points, relocalisation by bag of words when lost,
+    /// visual odometry from the last frame's depth when the map's points are out of view.
+    /// ORB-SLAM2 has no pose prior: an initial guess is not used, the first frames are
+    /// relocalised like any lost frame.
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        if (start.format, start.format_version) != (ORB_MAP_FORMAT, ORB_MAP_VERSION) {
+            return Err(PluginError::new(format!(
+                "orbslam2 reads {ORB_MAP_FORMAT} version {ORB_MAP_VERSION} maps, not {} version {}",
+                start.format, start.format_version
+            )));
+        }
+        let mut system = Self::new(config_toml, rig)?;
+        let (map, database) =
+            crate::saved::from_bytes(start.map, &system.camera, &system.vocabulary)
+                .map_err(PluginError::new)?;
+        system.map = map;
+        system.loop_closing.database = database;
+        system.tracking = Tracking::localizing();
+        system.localizing = Some(Vec::new());
+        Ok(system)
+    }
+
+    fn status(&self) -> PoseStatus {
+        if self.localizing.is_none() || self.tracking.localized() {
+            PoseStatus::Localized
+        } else {
+            PoseStatus::Searching
+        }
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
@@ -234,6 +285,7 @@ impl SlamSystem for OrbSlam2 {
             records: Vec::new(),
             events: Vec::new(),
             stages: Stages::default(),
+            localizing: None,
             cfg,
         })
     }
@@ -258,6 +310,9 @@ impl SlamSystem for OrbSlam2 {
             self.tracking
                 .track(&mut frame, &mut self.map, &ctx, &self.camera_from_base)
         });
+        if self.localizing.is_some() {
+            return Ok(Some(self.localized_pose(stamp_ns, &frame, &outcome)));
+        }
         let pose = match outcome {
             Outcome::Tracked {
                 keyframe,
@@ -290,6 +345,18 @@ impl SlamSystem for OrbSlam2 {
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        if let Some(poses) = &mut self.localizing {
+            eprintln!(
+                "orbslam2: localised in {} keyframes, {} points; {}",
+                self.map.keyframes.len(),
+                self.map.points.len(),
+                self.stages.summary(),
+            );
+            return Ok(SlamOutput {
+                trajectory: std::mem::take(poses),
+                ..SlamOutput::default()
+            });
+        }
         let trajectory = self
             .records
             .iter()
@@ -318,7 +385,11 @@ impl SlamSystem for OrbSlam2 {
             map: Some(map_points),
             grid: None,
             events: std::mem::take(&mut self.events),
-            saved_map: None,
+            saved_map: Some(SavedMap {
+                format: ORB_MAP_FORMAT.into(),
+                version: ORB_MAP_VERSION,
+                bytes: crate::saved::to_bytes(&self.map),
+            }),
         })
     }
 }

@@ -68,6 +68,12 @@ pub struct Tracking {
     local_points: Vec<usize>,
     /// Map points matched in the current frame (the keyframe decision's count).
     pub inliers: usize,
+    /// Localisation mode (ORB-SLAM2's `mbOnlyTracking`): no keyframes are made, the map is
+    /// read only.
+    pub only_tracking: bool,
+    /// In localisation mode, tracking holds by the last frame's depth points with fewer than
+    /// 10 map points matched (ORB-SLAM2's `mbVO`): visual odometry, not localised.
+    pub vo: bool,
 }
 
 impl Default for Tracking {
@@ -84,11 +90,29 @@ impl Default for Tracking {
             local_kfs: Vec::new(),
             local_points: Vec::new(),
             inliers: 0,
+            only_tracking: false,
+            vo: false,
         }
     }
 }
 
 impl Tracking {
+    /// Tracking for localisation in a loaded map (ORB-SLAM2's `ActivateLocalizationMode`):
+    /// lost until relocalisation finds the first frame in the map.
+    pub fn localizing() -> Self {
+        Self {
+            state: State::Lost,
+            only_tracking: true,
+            ..Self::default()
+        }
+    }
+
+    /// Whether the last frame was tracked against the map's points (localisation mode: not
+    /// lost and not by visual odometry alone).
+    pub fn localized(&self) -> bool {
+        self.state == State::Ok && !self.vo
+    }
+
     /// Tracks one frame. `initial` is the first frame's `camera_from_world` (the map frame).
     pub fn track(
         &mut self,
@@ -103,6 +127,7 @@ impl Tracking {
         }
         let mut relocalised = false;
         let mut ok = match self.state {
+            State::Ok if self.only_tracking => self.track_only(frame, map, ctx, &mut relocalised),
             State::Ok => {
                 let recent_reloc = self.frame_count < self.last_reloc_frame + 2;
                 let mut ok = false;
@@ -113,10 +138,13 @@ impl Tracking {
             }
             _ => {
                 relocalised = self.relocalise(frame, map, ctx);
+                if relocalised {
+                    self.vo = false;
+                }
                 relocalised
             }
         };
-        if ok {
+        if ok && !(self.only_tracking && self.vo) {
             ok = self.track_local_map(frame, map, ctx);
         }
         let was_ok = self.state == State::Ok;
@@ -133,8 +161,7 @@ impl Tracking {
         if let Some(last) = &self.last {
             self.velocity = Some(frame.camera_from_world * last.camera_from_world.inverse());
         }
-        let keyframe = self
-            .need_new_keyframe(frame, map, ctx)
+        let keyframe = (!self.only_tracking && self.need_new_keyframe(frame, map, ctx))
             .then(|| self.create_keyframe(frame, map, ctx));
         // Points BA may still accept go to the keyframe; the next frame does not use them.
         for (m, out) in frame.matches.iter_mut().zip(&frame.outliers) {
@@ -286,7 +313,67 @@ impl Tracking {
             return false;
         }
         optimize_frame_pose(ctx.camera, frame);
-        discard_outliers(frame, map) >= 10
+        let map_matches = discard_outliers(frame, map);
+        if self.only_tracking {
+            // ORB-SLAM2's localisation mode: fewer than 10 map points is visual odometry,
+            // held while more than 20 matches (depth points of the last frame too) remain.
+            self.vo = map_matches < 10;
+            return frame.matches.iter().flatten().count() > 20;
+        }
+        map_matches >= 10
+    }
+
+    /// Localisation mode's tracking of a frame after a tracked one (ORB-SLAM2's
+    /// `Tracking::Track` with `mbOnlyTracking`): with map points in view, the motion model
+    /// (or the reference keyframe without a velocity); in visual odometry, both the motion
+    /// model and relocalisation, relocalisation preferred when it succeeds.
+    fn track_only(
+        &mut self,
+        frame: &mut Frame,
+        map: &mut Map,
+        ctx: &Context<'_>,
+        relocalised: &mut bool,
+    ) -> bool {
+        if !self.vo {
+            return if self.velocity.is_some() {
+                self.track_motion_model(frame, map, ctx)
+            } else {
+                self.track_reference_keyframe(frame, map, ctx)
+            };
+        }
+        let by_motion = self.velocity.is_some() && self.track_motion_model(frame, map, ctx);
+        let motion = (
+            frame.matches.clone(),
+            frame.outliers.clone(),
+            frame.camera_from_world,
+            self.vo,
+        );
+        let reference = self.reference_kf;
+        if self.relocalise(frame, map, ctx) {
+            self.vo = false;
+            *relocalised = true;
+            return true;
+        }
+        self.reference_kf = reference;
+        if !by_motion {
+            return false;
+        }
+        (
+            frame.matches,
+            frame.outliers,
+            frame.camera_from_world,
+            self.vo,
+        ) = motion;
+        if self.vo {
+            for (m, &out) in frame.matches.iter().zip(&frame.outliers) {
+                if let Some(p) = m.and_then(|s| s.map_point).and_then(|p| map.resolve(p)) {
+                    if !out {
+                        map.points[p].found += 1;
+                    }
+                }
+            }
+        }
+        true
     }
 
     fn track_reference_keyframe(

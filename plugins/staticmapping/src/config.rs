@@ -27,6 +27,10 @@ pub struct Config {
     /// matching, M2DP, loop verification, back end) and its counts; a relative path lands
     /// in the run's folder.
     pub timing_json: Option<std::path::PathBuf>,
+    /// Localisation in a saved map (`vinebench localize`; the original has no such mode):
+    /// the front end as odometry, each sweep registered to the saved submaps after a Scan
+    /// Context search (`slam_common::maps::localizer`, its defaults LIO-SAM's).
+    pub localization: slam_common::maps::localizer::LocalizerConfig,
 }
 
 impl Default for Config {
@@ -45,6 +49,7 @@ impl Default for Config {
                 ..BackendConfig::default()
             },
             timing_json: None,
+            localization: Default::default(),
         }
     }
 }

@@ -132,6 +132,122 @@ pub fn is_keyframe(keyframe_from_sweep: &Isometry3<f64>, cfg: &FrontEndConfig) -
         || (cfg.keyframe_angle_deg > 1e-3 && angle_deg >= cfg.keyframe_angle_deg)
 }
 
+/// The front end one sweep at a time: the offline build runs it over the whole stream
+/// ([`run`]); localisation (issue 46) runs it online, as odometry.
+#[derive(Debug, Clone)]
+pub struct FrontEnd {
+    sweep_ns: i64,
+    deskew: bool,
+    cfg: FrontEndConfig,
+    icp: IcpConfig,
+    extrapolator: Extrapolator,
+    reference: Option<Reference>,
+    score_sum: f64,
+    scored: usize,
+    /// Keep every keyframe and sweep (the offline build) or only the last keyframe (online).
+    history: bool,
+    /// What the sweeps so far made (`mean_score` is set by [`FrontEnd::finish`]).
+    pub odometry: Odometry,
+}
+
+impl FrontEnd {
+    pub fn new(
+        imu_from_lidar: UnitQuaternion<f64>,
+        sweep_ns: i64,
+        deskew: bool,
+        cfg: &FrontEndConfig,
+        icp: &IcpConfig,
+    ) -> Self {
+        let queue_ns = (cfg.pose_queue_s * 1e9).round() as i64;
+        Self {
+            sweep_ns,
+            deskew,
+            cfg: cfg.clone(),
+            icp: icp.clone(),
+            extrapolator: Extrapolator::new(imu_from_lidar, queue_ns),
+            reference: None,
+            score_sum: 0.0,
+            scored: 0,
+            history: true,
+            odometry: Odometry::default(),
+        }
+    }
+
+    /// Keeps only the last keyframe and no sweep list: odometry for a run of any length.
+    pub fn without_history(mut self) -> Self {
+        self.history = false;
+        self
+    }
+
+    /// Registers the next sweep (in time order), with the gyroscope's samples so far if it
+    /// uses the IMU: its pose `world_from_lidar` and its de-skewed cloud, lidar frame.
+    pub fn step(
+        &mut self,
+        sweep: &Sweep,
+        gyro: Option<&[Gyro]>,
+    ) -> (Isometry3<f64>, Vec<Vector3<f64>>) {
+        let gyro = gyro.filter(|g| !g.is_empty());
+        let sweep_s = self.sweep_ns as f64 * 1e-9;
+        let guess = self.extrapolator.predict(sweep.stamp_ns, gyro);
+        let motion = self.deskew.then(|| {
+            guess.inverse()
+                * self
+                    .extrapolator
+                    .predict(sweep.stamp_ns + self.sweep_ns, gyro)
+        });
+        let cloud = input::deskew(sweep, motion.as_ref(), sweep_s);
+        let out = &mut self.odometry;
+        let pose = match (out.keyframes.last(), &self.reference) {
+            (Some(kf), Some(target)) => {
+                let kf_from_guess = kf.world_from_lidar.inverse() * guess;
+                match icp::align(&cloud, target, &kf_from_guess, &self.icp) {
+                    Some(a) => {
+                        self.score_sum += a.score;
+                        self.scored += 1;
+                        kf.world_from_lidar * a.reference_from_reading
+                    }
+                    None => {
+                        out.failed_matches += 1;
+                        guess
+                    }
+                }
+            }
+            _ => guess,
+        };
+        self.extrapolator.add(sweep.stamp_ns, pose);
+        let new_keyframe = match out.keyframes.last() {
+            None => true,
+            Some(kf) => is_keyframe(&(kf.world_from_lidar.inverse() * pose), &self.cfg),
+        };
+        if new_keyframe {
+            self.reference = Some(Reference::new(&cloud, self.icp.knn_normal));
+            if !self.history {
+                out.keyframes.clear();
+            }
+            out.keyframes.push(Keyframe {
+                stamp_ns: sweep.stamp_ns,
+                world_from_lidar: pose,
+                cloud: cloud.clone(),
+            });
+        }
+        if self.history {
+            out.sweeps
+                .push((sweep.stamp_ns, pose, out.keyframes.len() - 1));
+        }
+        (pose, cloud)
+    }
+
+    /// The odometry of every sweep stepped, with its mean match score.
+    pub fn finish(mut self) -> Odometry {
+        self.odometry.mean_score = if self.scored > 0 {
+            self.score_sum / self.scored as f64
+        } else {
+            0.0
+        };
+        self.odometry
+    }
+}
+
 /// Runs the front end over `sweeps` (in time order), each lasting `sweep_ns`, with the
 /// gyroscope's samples if it uses the IMU, deskewing each sweep if `deskew`.
 pub fn run(
@@ -143,58 +259,11 @@ pub fn run(
     front_end: &FrontEndConfig,
     icp_cfg: &IcpConfig,
 ) -> Odometry {
-    let gyro = gyro.filter(|g| !g.is_empty());
-    let sweep_s = sweep_ns as f64 * 1e-9;
-    let queue_ns = (front_end.pose_queue_s * 1e9).round() as i64;
-    let mut extrapolator = Extrapolator::new(imu_from_lidar, queue_ns);
-    let mut out = Odometry::default();
-    let mut reference: Option<Reference> = None;
-    let mut score_sum = 0.0;
-    let mut scored = 0usize;
+    let mut f = FrontEnd::new(imu_from_lidar, sweep_ns, deskew, front_end, icp_cfg);
     for sweep in sweeps {
-        let guess = extrapolator.predict(sweep.stamp_ns, gyro);
-        let motion =
-            deskew.then(|| guess.inverse() * extrapolator.predict(sweep.stamp_ns + sweep_ns, gyro));
-        let cloud = input::deskew(sweep, motion.as_ref(), sweep_s);
-        let pose = match (out.keyframes.last(), &reference) {
-            (Some(kf), Some(target)) => {
-                let kf_from_guess = kf.world_from_lidar.inverse() * guess;
-                match icp::align(&cloud, target, &kf_from_guess, icp_cfg) {
-                    Some(a) => {
-                        score_sum += a.score;
-                        scored += 1;
-                        kf.world_from_lidar * a.reference_from_reading
-                    }
-                    None => {
-                        out.failed_matches += 1;
-                        guess
-                    }
-                }
-            }
-            _ => guess,
-        };
-        extrapolator.add(sweep.stamp_ns, pose);
-        let new_keyframe = match out.keyframes.last() {
-            None => true,
-            Some(kf) => is_keyframe(&(kf.world_from_lidar.inverse() * pose), front_end),
-        };
-        if new_keyframe {
-            reference = Some(Reference::new(&cloud, icp_cfg.knn_normal));
-            out.keyframes.push(Keyframe {
-                stamp_ns: sweep.stamp_ns,
-                world_from_lidar: pose,
-                cloud,
-            });
-        }
-        out.sweeps
-            .push((sweep.stamp_ns, pose, out.keyframes.len() - 1));
+        f.step(sweep, gyro);
     }
-    out.mean_score = if scored > 0 {
-        score_sum / scored as f64
-    } else {
-        0.0
-    };
-    out
+    f.finish()
 }
 
 #[cfg(test)]

@@ -2,13 +2,17 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, Imu, Mode, Parameters, PluginError, PointCloud, Pose, Requirements, Rig, SensorKind,
-    SlamOutput, SlamSystem, Stages,
+    Event, Imu, MapStart, Mode, Parameters, PluginError, PointCloud, Pose, PoseStatus,
+    Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
+use slam_common::maps::keyframes::{
+    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe,
+};
+use slam_common::maps::localizer::MapLocalizer;
 use slam_common::place::m2dp::{self, Descriptor, M2dpConfig, Rings};
 use slam_common::registration::voxel::downsample;
 
@@ -29,6 +33,20 @@ pub struct StaticMapping {
     lidar_from_base: Isometry3<f64>,
     sweeps: Vec<Sweep>,
     gyro: Vec<Gyro>,
+    /// Localisation mode (`vinebench localize`): online, sweep by sweep.
+    localizing: Option<Box<Localizing>>,
+}
+
+/// A localisation run's state: the front end as odometry, the saved map's localiser, the
+/// guess of the start (`map_from_lidar`) until the first sweep, the last status and the
+/// poses returned.
+#[derive(Debug)]
+struct Localizing {
+    front_end: frontend::FrontEnd,
+    localizer: MapLocalizer,
+    guess: Option<Isometry3<f64>>,
+    status: PoseStatus,
+    trajectory: Vec<Pose>,
 }
 
 /// What the offline build did and how long each stage took (`timing_json`).
@@ -212,12 +230,32 @@ impl StaticMapping {
             .into_iter()
             .map(|p| [p.x as f32, p.y as f32, p.z as f32])
             .collect();
+        // The map to localise in later: every submap at its optimised pose with its cloud,
+        // in the frame of its first keyframe's lidar.
+        let saved = KeyframeMap {
+            keyframes: submaps
+                .iter()
+                .enumerate()
+                .map(|(k, s)| MapKeyframe {
+                    map_from_sensor: graph.pose(k),
+                    points: s
+                        .cloud
+                        .iter()
+                        .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                        .collect(),
+                })
+                .collect(),
+        };
         SlamOutput {
             trajectory,
             map: Some(map),
             grid: None,
             events,
-            saved_map: None,
+            saved_map: Some(SavedMap {
+                format: KEYFRAME_MAP_FORMAT.into(),
+                version: KEYFRAME_MAP_VERSION,
+                bytes: saved.to_bytes(),
+            }),
         }
     }
 }
@@ -226,12 +264,56 @@ impl SlamSystem for StaticMapping {
     const NAME: &'static str = "staticmapping";
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
+    /// Offline when mapping; localisation (`can_localize`) answers every sweep online.
     fn requirements() -> Requirements {
         Requirements {
             sensors: vec![SensorKind::Lidar, SensorKind::Imu],
             mode: Mode::Offline,
-            can_localize: false,
+            can_localize: true,
         }
+    }
+
+    /// Localisation in a map a mapping run saved (its optimised submaps): the front end
+    /// runs online as odometry, and each sweep's kept points are registered to the saved
+    /// submaps (`slam_common::maps::localizer`: Scan Context search, ICP verification).
+    /// StaticMapping itself has no localisation mode; this composes its front end with the
+    /// localiser lio-sam uses, so that the two lidar systems differ by their maps and their
+    /// odometry, not by the localiser.
+    fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
+        if (start.format, start.format_version) != (KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION) {
+            return Err(PluginError::new(format!(
+                "staticmapping reads {KEYFRAME_MAP_FORMAT} version {KEYFRAME_MAP_VERSION} maps, not {} version {}",
+                start.format, start.format_version
+            )));
+        }
+        let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
+        let mut system = Self::new(config_toml, rig)?;
+        let cfg = &system.cfg;
+        let guess = start
+            .initial_guess
+            .and_then(|g| g.map_from_base.isometry())
+            .map(|map_from_base| map_from_base * system.lidar_from_base.inverse());
+        system.localizing = Some(Box::new(Localizing {
+            front_end: frontend::FrontEnd::new(
+                system.imu_from_lidar,
+                system.sweep_ns,
+                cfg.input.deskew,
+                &cfg.front_end,
+                &cfg.icp,
+            )
+            .without_history(),
+            localizer: MapLocalizer::new(map, cfg.localization.clone()),
+            guess,
+            status: PoseStatus::Searching,
+            trajectory: Vec::new(),
+        }));
+        Ok(system)
+    }
+
+    fn status(&self) -> PoseStatus {
+        self.localizing
+            .as_ref()
+            .map_or(PoseStatus::Localized, |l| l.status)
     }
 
     fn new(config_toml: &str, rig: &Rig) -> Result<Self, PluginError> {
@@ -252,6 +334,7 @@ impl SlamSystem for StaticMapping {
             lidar_from_base: base_from_lidar.inverse(),
             sweeps: Vec::new(),
             gyro: Vec::new(),
+            localizing: None,
             cfg,
         })
     }
@@ -267,16 +350,50 @@ impl SlamSystem for StaticMapping {
     }
 
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
-        self.sweeps.push(input::filter(
+        let sweep = input::filter(cloud.stamp_ns, cloud.points, &self.cfg.input, &mut self.rng);
+        let Some(l) = &mut self.localizing else {
+            self.sweeps.push(sweep);
+            return Ok(None);
+        };
+        let gyro = self.cfg.use_imu.then_some(&self.gyro[..]);
+        let (odom_from_lidar, points) = l.front_end.step(&sweep, gyro);
+        // The gyroscope is read from the sweep's start on: older samples can go.
+        let keep = self.gyro.partition_point(|g| g.stamp_ns < sweep.stamp_ns);
+        self.gyro.drain(..keep.saturating_sub(1));
+        if let Some(guess) = l.guess.take() {
+            l.localizer.guess(&guess, &odom_from_lidar);
+        }
+        let points: Vec<[f32; 3]> = points
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+            .collect();
+        let found = l.localizer.update(&odom_from_lidar, &points);
+        l.status = if found.localized {
+            PoseStatus::Localized
+        } else {
+            PoseStatus::Searching
+        };
+        let pose = Pose::new(
             cloud.stamp_ns,
-            cloud.points,
-            &self.cfg.input,
-            &mut self.rng,
-        ));
-        Ok(None)
+            &(found.map_from_sensor * self.lidar_from_base),
+        );
+        l.trajectory.push(pose);
+        Ok(Some(pose))
     }
 
     fn finish(&mut self) -> Result<SlamOutput, PluginError> {
+        if let Some(l) = &mut self.localizing {
+            eprintln!(
+                "staticmapping: localised in {} submaps: {} global searches, {} accepted",
+                l.localizer.keyframes(),
+                l.localizer.searches,
+                l.localizer.relocalizations
+            );
+            return Ok(SlamOutput {
+                trajectory: std::mem::take(&mut l.trajectory),
+                ..SlamOutput::default()
+            });
+        }
         let (output, report) = self.build()?;
         if let Some(path) = &self.cfg.timing_json {
             let text = serde_json::to_string_pretty(&report)

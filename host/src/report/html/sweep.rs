@@ -53,7 +53,7 @@ pub fn sweep_page(name: &str, agg: &Aggregate) -> anyhow::Result<String> {
             let _ = write!(body, "<th>{}</th>", esc(h));
         }
         body.push_str("</tr>\n");
-        for row in agg.rows.iter().filter(|r| &r.scenario == scenario) {
+        for row in agg.mapping_rows(scenario) {
             let _ = write!(body, "<tr><td class=\"l\">{}</td>", esc(&row.system));
             for (_, v) in &row.axes {
                 let _ = write!(body, "<td>{}</td>", esc(v));
@@ -77,6 +77,44 @@ pub fn sweep_page(name: &str, agg: &Aggregate) -> anyhow::Result<String> {
             }
         }
         body.push_str("</section>\n");
+    }
+    let localizing: Vec<_> = agg
+        .rows
+        .iter()
+        .filter(|r| r.localization.is_some())
+        .collect();
+    if !localizing.is_empty() {
+        body.push_str(
+            "<section id=\"localization\"><h2>Localisation</h2><p>Runs started from a map \
+             built by a mapping run of this sweep (the label's <code>@</code> names the map's \
+             point of the crossed axes) or from the surveyed grid; success is the first correct \
+             pose within 10 m of travel, a false localisation an episode flagged localised more \
+             than 0.5 m or 10° off.</p>\n<div class=\"scroll\"><table><tr><th class=\"l\">\
+             scenario</th><th class=\"l\">system</th>",
+        );
+        for (path, _) in &agg.axes {
+            let _ = write!(body, "<th>{}</th>", esc(path));
+        }
+        for h in crate::report::sweep::LOCALIZATION_HEADERS {
+            let _ = write!(body, "<th>{}</th>", esc(h));
+        }
+        body.push_str("</tr>\n");
+        for row in localizing {
+            let _ = write!(
+                body,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td>",
+                esc(&row.scenario),
+                esc(&row.system)
+            );
+            for (_, v) in &row.axes {
+                let _ = write!(body, "<td>{}</td>", esc(v));
+            }
+            for cell in crate::report::sweep::localization_cells(row) {
+                let _ = write!(body, "<td>{}</td>", esc(&cell));
+            }
+            body.push_str("</tr>\n");
+        }
+        body.push_str("</table></div></section>\n");
     }
     let failures = failure_lines(agg);
     if !failures.is_empty() {
