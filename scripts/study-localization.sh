@@ -10,14 +10,20 @@
 #   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
 #   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
 #   bash scripts/study-localization.sh --table       write docs/localization/study.md
+#   PROFILE=field bash scripts/study-localization.sh ...   the same under `field` (its own
+#                                                    folders, study-field.md)
 # A run whose folder holds metrics.json (or whose kept copy exists) is not run again; the
 # study spreads over sessions. VINEBENCH: another build's vinebench, used as it is (its
 # plugins beside it), so that a study left running keeps its binary while the tree is
 # rebuilt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-results=results/localization
-kept=docs/localization/runs
+# PROFILE=field: the same study under the `field` profile, in its own folders.
+profile=${PROFILE:-typical}
+case $profile in
+    typical) results=results/localization; kept=docs/localization/runs ;;
+    *) results=results/localization-$profile; kept=docs/localization/runs-$profile ;;
+esac
 vb=${VINEBENCH:-target/release/vinebench}
 all=(lio-sam amcl amcl-guess rtabmap staticmapping orbslam2)
 
@@ -44,7 +50,7 @@ map_run() { # map_run SYSTEM VAR SEED -> the mapping run's folder
     if ! [ -f "$dir/s3/$1/metrics.json" ]; then
         rm -rf "$dir"
         # Every system with its defaults, as the paper bench runs it (configs/paper.toml).
-        nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile typical --scenario s3 \
+        nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile "$profile" --scenario s3 \
             --seed "$3" --plugin "$1" --out "$dir" >&2
     fi
     echo "$dir/s3/$1"
@@ -73,7 +79,7 @@ print(f"{x},{y},{math.atan2(2*(qw*qz+qx*qy), 1-2*(qy*qy+qz*qz))},0.5,0.26")' "$g
         *) map=(--map "$(map_run "$system" "$var" "$seed")") ;;
     esac
     echo "localize $system $name" >&2
-    nice -n 19 "$vb" localize "${map[@]}" --world "$(world "$stage" "$var")" --profile typical \
+    nice -n 19 "$vb" localize "${map[@]}" --world "$(world "$stage" "$var")" --profile "$profile" \
         --scenario s1 --seed "$seed" --label "$system" --out "$out" --allow-failures "$@" >&2
     printf '{"system": "%s", "variation": %s, "seed": %s, "stage": %s, "kidnap": %s}\n' \
         "$system" "$var" "$seed" "$stage" "$([ $# -gt 0 ] && echo true || echo false)" \
@@ -105,8 +111,10 @@ save() {
 
 case "${1:-}" in
     --save) save; exit 0 ;;
-    --table) python3 scripts/study-localization.py "$kept" > docs/localization/study.md
-             echo "wrote docs/localization/study.md"; exit 0 ;;
+    --table) table=docs/localization/study.md
+             [ "$profile" = typical ] || table=docs/localization/study-$profile.md
+             python3 scripts/study-localization.py "$kept" > "$table"
+             echo "wrote $table"; exit 0 ;;
 esac
 systems=("$@")
 [ ${#systems[@]} -gt 0 ] || systems=("${all[@]}")
