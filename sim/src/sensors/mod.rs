@@ -1,6 +1,7 @@
 //! Sensor models. Each sensor knows when its next message is ready and makes it from the
 //! ground-truth trajectory and the scene; [`crate::Stream`] merges them in time order.
 
+pub mod gnss;
 mod ground_truth;
 mod imu;
 mod lidar;
