@@ -178,6 +178,7 @@ impl SimConfig {
         positive("robot.max_yaw_accel_rps2", r.max_yaw_accel_rps2)?;
         positive("robot.lookahead_m", r.lookahead_m)?;
         let s = &self.sensors;
+        s.gnss.check()?;
         positive("sensors.ground_truth.rate_hz", s.ground_truth.rate_hz)?;
         positive("sensors.imu.rate_hz", s.imu.rate_hz)?;
         positive("sensors.wheel_odometry.rate_hz", s.wheel_odometry.rate_hz)?;
@@ -582,6 +583,30 @@ impl Mount {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A world states its GNSS receiver under `[sensors.gnss]`; one without a receiver
+    /// leaves it out of its resolved file (so that its key is what it was before GNSS), and
+    /// a bad value is refused naming its key.
+    #[test]
+    fn a_gnss_receiver_is_stated_checked_and_absent_by_default() {
+        let plain = SimConfig::from_toml_str(crate::DEFAULT_CONFIG_TOML, "world").expect("world");
+        assert_eq!(plain.sensors.gnss.profile, GnssProfile::None);
+        assert!(!plain.to_toml_string().contains("gnss"));
+        let text = format!(
+            "{}\n[sensors.gnss]\nprofile = \"rtk\"\nrate_hz = 10.0\n",
+            crate::DEFAULT_CONFIG_TOML
+        );
+        let rtk = SimConfig::from_toml_str(&text, "rtk").expect("rtk world");
+        assert_eq!(rtk.sensors.gnss.profile, GnssProfile::Rtk);
+        assert_eq!(rtk.sensors.gnss.rate_hz, 10.0);
+        let again = SimConfig::from_toml_str(&rtk.to_toml_string(), "again").expect("reads back");
+        assert_eq!(again, rtk);
+        let bad = text.replace("rate_hz = 10.0", "rate_hz = -1.0");
+        let err = SimConfig::from_toml_str(&bad, "bad")
+            .expect_err("refused")
+            .to_string();
+        assert!(err.contains("sensors.gnss.rate_hz"), "{err}");
+    }
 
     /// The documented file and the built-in defaults must never disagree.
     #[test]

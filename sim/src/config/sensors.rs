@@ -23,7 +23,13 @@ pub struct SensorsConfig {
     pub scan2d_front: Scan2dConfig,
     pub scan2d_back: Scan2dConfig,
     pub camera: CameraConfig,
+    /// A GNSS receiver on a mast (issue 47; `sensors::gnss`): none unless a world or a
+    /// sweep's axes choose a profile; left out of a resolved world without one.
+    #[serde(default, skip_serializing_if = "GnssConfig::is_absent")]
+    pub gnss: GnssConfig,
 }
+
+pub use crate::sensors::gnss::{ErrorModel, GnssConfig, GnssProfile};
 
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]

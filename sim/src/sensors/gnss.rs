@@ -31,12 +31,30 @@
 //! is lost, never received by a reflection), the antenna's phase-centre variation, and
 //! correlation between the axes.
 
-use nalgebra::{Matrix4, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix4, Point3, Unit, UnitQuaternion, Vector3};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 
+use super::Scene;
+use crate::raycast::RayCaster;
 use crate::rng::SimRng;
+
+/// How far a ray looks for what hides a satellite, metres: well past a block's far side.
+pub const SKY_REACH_M: f32 = 1000.0;
+
+/// Whether a ray from `antenna` (world frame: x east, y north, z up) towards `direction`
+/// reaches the sky: nothing the caster holds lies on it. The world's mesh is its canopy,
+/// trunks, posts, wires, fence and ground, so each of them can hide a satellite.
+pub fn sky_visible(
+    caster: &dyn RayCaster,
+    antenna: &Vector3<f64>,
+    direction: &Vector3<f64>,
+) -> bool {
+    let origin = Point3::from(antenna.cast::<f32>());
+    let dir = direction.normalize().cast::<f32>();
+    caster.cast(&origin, &dir, 1e-3, SKY_REACH_M).is_none()
+}
 
 /// Half a sidereal day, seconds: a GPS satellite's orbital period.
 pub const GPS_ORBIT_S: f64 = 43_082.0;
@@ -153,6 +171,12 @@ impl Default for GnssConfig {
 }
 
 impl GnssConfig {
+    /// No receiver: the world's resolved file leaves the table out (so that worlds without
+    /// GNSS keep their keys).
+    pub fn is_absent(&self) -> bool {
+        self.profile == GnssProfile::None
+    }
+
     /// Why these parameters cannot work, if they cannot.
     pub fn check(&self) -> Result<(), String> {
         if self.profile == GnssProfile::None {
@@ -432,6 +456,23 @@ impl GnssReceiver {
     }
 }
 
+impl GnssReceiver {
+    /// The epoch at `t_ns` of the antenna at `base_from_antenna` on the robot of `scene`,
+    /// the sky seen past the world's mesh ([`sky_visible`]); and the antenna's true
+    /// position.
+    pub fn measure_scene(
+        &mut self,
+        scene: &Scene<'_>,
+        t_ns: i64,
+        base_from_antenna: &Isometry3<f64>,
+    ) -> (GnssFix, Vector3<f64>) {
+        let world_from_antenna = scene.trajectory.state(t_ns).world_from_base * base_from_antenna;
+        let antenna = world_from_antenna.translation.vector;
+        let fix = self.measure(t_ns, &antenna, |d| sky_visible(scene.caster, &antenna, d));
+        (fix, antenna)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -573,6 +614,38 @@ mod tests {
             .map(|(x, y)| x.angle(y).to_degrees())
             .fold(0.0, f64::max);
         assert!((1.0..10.0).contains(&moved), "moved {moved}° in 10 min");
+    }
+
+    /// The sky is seen past the mesh: under a roof 3 m up and 20 m wide nothing high is
+    /// seen and the receiver has no fix; beside it, the satellites on the roof's side are
+    /// hidden and the others seen.
+    #[test]
+    fn a_roof_hides_the_sky_above_it() {
+        use crate::raycast::BruteForce;
+        use crate::world::{Material, Mesh};
+        let mut mesh = Mesh::new();
+        let v: Vec<u32> = [[-10.0, -10.0], [10.0, -10.0], [10.0, 10.0], [-10.0, 10.0]]
+            .iter()
+            .map(|[x, y]| mesh.push_vertex(Point3::new(*x, *y, 3.0)))
+            .collect();
+        mesh.push_triangle([v[0], v[1], v[2]], Material::Leaf);
+        mesh.push_triangle([v[0], v[2], v[3]], Material::Leaf);
+        let caster = BruteForce::build(&mesh);
+        let under = Vector3::zeros();
+        assert!(!sky_visible(&caster, &under, &Vector3::z()));
+        // 5° up: the roof's edge, 10 m away, is 0.87 m up at it: seen past.
+        let low = Vector3::new(5f64.to_radians().cos(), 0.0, 5f64.to_radians().sin());
+        assert!(sky_visible(&caster, &under, &low));
+        let mut rx = receiver(GnssProfile::Rtk);
+        let fix = rx.measure(0, &under, |d| sky_visible(&caster, &under, d));
+        assert_eq!(fix.status, FixStatus::None, "{fix:?}");
+        assert!(fix.position_enu_m.is_none());
+        // 12 m east of the roof's edge: the sky to the west below atan(3/12) is hidden.
+        let beside = Vector3::new(22.0, 0.0, 0.0);
+        let west_low = Vector3::new(-1.0, 0.0, 0.2).normalize();
+        let west_high = Vector3::new(-1.0, 0.0, 0.3).normalize();
+        assert!(!sky_visible(&caster, &beside, &west_low));
+        assert!(sky_visible(&caster, &beside, &west_high));
     }
 
     #[test]
