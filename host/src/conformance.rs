@@ -121,7 +121,12 @@ pub fn check_all(
     let logs = tempfile_dir()?;
     let mut outcomes = Vec::new();
     for check in Check::ALL {
-        let outcome = run_child(&exe, subject, check, timeout, &logs)?;
+        // The localize check feeds the route twice (mapping it, then localising on it).
+        let limit = match check {
+            Check::Localize => timeout * 2,
+            _ => timeout,
+        };
+        let outcome = run_child(&exe, subject, check, limit, &logs)?;
         on_outcome(&outcome);
         let loaded = check != Check::Load || outcome.passed;
         outcomes.push(outcome);
