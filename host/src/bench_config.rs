@@ -212,17 +212,7 @@ impl LocalizeEntry {
             .map_run()
             .filter(|_| !self.surveyed)
             .map(|(s, l)| Path::new("..").join("..").join(s).join(l));
-        let map = match (&mapping_run, self.grid) {
-            (None, _) => MapSource::Surveyed {
-                world: self.survey_world.clone(),
-            },
-            (Some(dir), true) => MapSource::Grid {
-                yaml: dir.join(crate::results::files::GRID_YAML),
-            },
-            (Some(dir), false) => MapSource::Saved {
-                path: dir.join(crate::results::files::SAVED_MAP),
-            },
-        };
+        let map = MapSource::of(mapping_run.as_deref(), self.grid, self.survey_world.clone());
         LocalizeSpec {
             map,
             mapping_run,

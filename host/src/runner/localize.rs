@@ -40,6 +40,24 @@ pub enum MapSource {
     },
 }
 
+impl MapSource {
+    /// The map of a mapping run's folder (`None`: the world's surveyed grid, of
+    /// `survey_world` where given): its occupancy grid with `grid`, else its `map.bin`.
+    pub fn of(mapping_run: Option<&Path>, grid: bool, survey_world: Option<PathBuf>) -> Self {
+        match (mapping_run, grid) {
+            (None, _) => MapSource::Surveyed {
+                world: survey_world,
+            },
+            (Some(dir), true) => MapSource::Grid {
+                yaml: dir.join(files::GRID_YAML),
+            },
+            (Some(dir), false) => MapSource::Saved {
+                path: dir.join(files::SAVED_MAP),
+            },
+        }
+    }
+}
+
 /// A guess of the start in the map frame, with its uncertainty.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -165,17 +165,7 @@ impl LocalizeCell {
             .as_ref()
             .map(|key| std::path::absolute(run_dir(out, key)))
             .transpose()?;
-        let map = match (&mapping_run, self.grid) {
-            (None, _) => MapSource::Surveyed {
-                world: self.survey_world.clone(),
-            },
-            (Some(dir), true) => MapSource::Grid {
-                yaml: dir.join(crate::results::files::GRID_YAML),
-            },
-            (Some(dir), false) => MapSource::Saved {
-                path: dir.join(crate::results::files::SAVED_MAP),
-            },
-        };
+        let map = MapSource::of(mapping_run.as_deref(), self.grid, self.survey_world.clone());
         Ok(LocalizeSpec {
             map,
             mapping_run,
