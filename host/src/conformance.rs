@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, anyhow};
 use plugin_api::{
-    Imu, LaserScan, LidarPoint, PluginError, PluginInstance, PointCloud, Pose, Requirements,
-    RgbdFrame, Rig, SensorKind, WheelOdometry,
+    Gnss, GnssStatus, Imu, LaserScan, LidarPoint, PluginError, PluginInstance, PointCloud, Pose,
+    Requirements, RgbdFrame, Rig, SensorKind, WheelOdometry,
 };
 use sim::sensors::Message;
 
@@ -466,7 +466,7 @@ fn check_in_process(
     }
     let config = sim::SimConfig::load(subject.world.as_deref())
         .map_err(|e| Failure(format!("the world: {e}")))?;
-    let rig = crate::rig::rig(&config);
+    let rig = crate::rig::rig_for(&config, &requirements.sensors);
     if check == Check::Localize {
         return check_localize(&plugin, &requirements, subject, &config, &rig, out);
     }
@@ -689,6 +689,7 @@ fn lead_in(
 enum Input {
     Imu(Imu, &'static str),
     Odometry(WheelOdometry, &'static str),
+    Gnss(Gnss, &'static str),
     Cloud {
         stamp_ns: i64,
         sensor: String,
@@ -719,6 +720,7 @@ impl Input {
         let (kind, what, stamp) = match self {
             Input::Imu(m, what) => ("IMU reading", *what, m.stamp_ns),
             Input::Odometry(m, what) => ("wheel odometry", *what, m.stamp_ns),
+            Input::Gnss(m, what) => ("GNSS fix", *what, m.stamp_ns),
             Input::Cloud { stamp_ns, what, .. } => ("point cloud", *what, *stamp_ns),
             Input::Scan { stamp_ns, what, .. } => ("laser scan", *what, *stamp_ns),
             Input::Frame { stamp_ns, what, .. } => ("RGB-D frame", *what, *stamp_ns),
@@ -730,6 +732,7 @@ impl Input {
         match self {
             Input::Imu(m, _) => p.on_imu(m),
             Input::Odometry(m, _) => p.on_wheel_odometry(m),
+            Input::Gnss(m, _) => p.on_gnss(m),
             Input::Cloud {
                 stamp_ns,
                 sensor,
@@ -824,6 +827,23 @@ fn message(
             },
             what,
         ),
+        // An RTK fix near the datum, 2 cm per axis.
+        SensorKind::Gnss => Input::Gnss(
+            Gnss {
+                stamp_ns,
+                status: GnssStatus::Fixed,
+                satellites: 12,
+                position_enu_m: [value(0, 1.0), value(1, 2.0), value(2, 1.7)],
+                covariance_enu_m2: std::array::from_fn(|i| {
+                    value(3 + i, if i % 4 == 0 { 4e-4 } else { 0.0 })
+                }),
+                latitude_deg: value(12, 53.268642),
+                longitude_deg: value(13, -0.524509),
+                altitude_m: value(14, 1.7),
+                hdop: 0.8,
+            },
+            what,
+        ),
         SensorKind::Lidar => Input::Cloud {
             stamp_ns,
             sensor,
@@ -887,6 +907,23 @@ fn edge_input(check: Check, rig: &Rig, kinds: &[SensorKind], last_ns: i64) -> Ve
                 SensorKind::Lidar | SensorKind::Scan2d | SensorKind::Rgbd => {
                     inputs.push(message(rig, kind, next(), 0, &plain, "an empty"));
                 }
+                // A fix's empty forms: a fix without a position, one with a zero
+                // covariance, and no fix at all.
+                SensorKind::Gnss => {
+                    let mut without = message(rig, kind, next(), 0, &plain, "a position-less");
+                    let mut zero = message(rig, kind, next(), 0, &plain, "a zero-covariance");
+                    let mut none = message(rig, kind, next(), 0, &plain, "a no-fix");
+                    if let (Input::Gnss(a, _), Input::Gnss(b, _), Input::Gnss(c, _)) =
+                        (&mut without, &mut zero, &mut none)
+                    {
+                        a.position_enu_m = [f64::NAN; 3];
+                        b.covariance_enu_m2 = [0.0; 9];
+                        c.status = GnssStatus::NoFix;
+                        c.position_enu_m = [f64::NAN; 3];
+                        c.covariance_enu_m2 = [0.0; 9];
+                    }
+                    inputs.extend([without, zero, none]);
+                }
                 // Fixed-size messages have no empty form.
                 SensorKind::Imu | SensorKind::WheelOdometry => {}
             },
@@ -925,7 +962,7 @@ fn edge_input(check: Check, rig: &Rig, kinds: &[SensorKind], last_ns: i64) -> Ve
                 Input::Cloud { sensor, .. }
                 | Input::Scan { sensor, .. }
                 | Input::Frame { sensor, .. } => *sensor = "not_in_the_rig".into(),
-                Input::Imu(..) | Input::Odometry(..) => {}
+                Input::Imu(..) | Input::Odometry(..) | Input::Gnss(..) => {}
             }
             inputs.push(m);
         }

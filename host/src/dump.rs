@@ -1,6 +1,6 @@
 //! Writes a simulated stream to a folder: ground truth as TUM, lidar as KITTI `.bin` with
 //! `times.txt`, the camera as a TUM RGB-D sequence (`rgbd/`, with `camera.yaml`), 2D scans,
-//! IMU and odometry as CSV, and a top view of the world and route.
+//! IMU, odometry and GNSS (`gnss.csv`) as CSV, and a top view of the world and route.
 //! The folder is written under a temporary name and renamed when complete, so a failed run
 //! never leaves half-written results.
 
@@ -23,6 +23,7 @@ pub struct Dump {
     tmp: PathBuf,
     gt: Option<BufWriter<File>>,
     imu: Option<BufWriter<File>>,
+    gnss: Option<BufWriter<File>>,
     odom: Option<BufWriter<File>>,
     lidar_times: Option<BufWriter<File>>,
     lidar_count: usize,
@@ -131,6 +132,7 @@ impl Dump {
             tmp,
             gt: None,
             imu: None,
+            gnss: None,
             odom: None,
             lidar_times: None,
             lidar_count: 0,
@@ -203,6 +205,28 @@ impl Dump {
                 self.lidar_count += 1;
             }
             Message::Rgbd(frame) => self.write_rgbd(frame)?,
+            Message::Gnss(m) => {
+                // The antenna's fix in the world's east-north-up frame and in WGS-84; an
+                // epoch without a fix has empty position fields.
+                let header = "stamp_ns,status,satellites,east_m,north_m,up_m,\
+                              var_east_m2,var_north_m2,var_up_m2,latitude_deg,longitude_deg,\
+                              altitude_m,hdop";
+                let w = open(&mut self.gnss, &self.tmp.join("gnss.csv"), Some(header))?;
+                let status = format!("{:?}", m.status).to_lowercase();
+                let p = m
+                    .position_enu_m
+                    .map_or(",,".to_owned(), |p| format!("{},{},{}", p.x, p.y, p.z));
+                let [ve, vn, vu] = m.variance_enu_m2;
+                let g = m
+                    .geodetic
+                    .map_or(",,".to_owned(), |[a, b, c]| format!("{a},{b},{c}"));
+                let hdop = m.hdop.map_or(String::new(), |h| h.to_string());
+                writeln!(
+                    w,
+                    "{},{status},{},{p},{ve},{vn},{vu},{g},{hdop}",
+                    m.stamp_ns, m.satellites
+                )?;
+            }
             Message::Scan2d(scan) => {
                 let slot = &mut self.scans[scan.side as usize];
                 let path = self.tmp.join(format!("{}.csv", scan.side.name()));
@@ -289,6 +313,7 @@ impl Dump {
         let writers = [
             &mut self.gt,
             &mut self.imu,
+            &mut self.gnss,
             &mut self.odom,
             &mut self.lidar_times,
         ];

@@ -43,7 +43,58 @@ fn scan2d(name: &str, cfg: &Scan2dConfig, side: Side) -> SensorSpec {
     .with_mount(&cfg.mount_for(side).base_from_sensor())
 }
 
-/// Every sensor the simulator can stream, with its datasheet figures.
+/// The rig a plugin that asks for `sensors` is told: [`rig`], and the GNSS receiver where
+/// it asks for one and the world has one (revision 5: so that a plugin built before the
+/// kind existed never meets it in its rig).
+pub fn rig_for(cfg: &SimConfig, sensors: &[SensorKind]) -> Rig {
+    let mut rig = rig(cfg);
+    let g = &cfg.sensors.gnss;
+    if sensors.contains(&SensorKind::Gnss) && !g.is_absent() {
+        let [x, y, z] = g.mount_xyz_m;
+        let [lat, lon, h] = g.datum;
+        // The error model as the datasheets give it: what a fix of each status reports as
+        // its own σ (also in every message's covariance).
+        let model = |prefix: &str, m: &sim::config::ErrorModel| {
+            [
+                (format!("{prefix}_sigma_h_m"), m.sigma_h_m),
+                (format!("{prefix}_sigma_v_m"), m.sigma_v_m),
+            ]
+        };
+        let mut noise = BTreeMap::new();
+        let single = match g.profile {
+            sim::config::GnssProfile::Consumer => &g.consumer,
+            _ => &g.single,
+        };
+        for (k, v) in model("fixed", &g.fixed)
+            .into_iter()
+            .chain(model("float", &g.float))
+            .chain(model("single", single))
+        {
+            noise.insert(k, v);
+        }
+        rig.sensors.push(
+            SensorSpec {
+                intrinsics: figures(&[
+                    ("datum_latitude_deg", lat),
+                    ("datum_longitude_deg", lon),
+                    ("datum_altitude_m", h),
+                    ("latency_s", g.latency_s),
+                    (
+                        "rtk",
+                        f64::from(u8::from(g.profile == sim::config::GnssProfile::Rtk)),
+                    ),
+                ]),
+                noise,
+                ..spec("gnss", SensorKind::Gnss, g.rate_hz)
+            }
+            .with_mount(&nalgebra::Isometry3::translation(x, y, z)),
+        );
+    }
+    rig
+}
+
+/// Every sensor the simulator can stream, with its datasheet figures, but the GNSS
+/// receiver ([`rig_for`]).
 pub fn rig(cfg: &SimConfig) -> Rig {
     let s = &cfg.sensors;
     let imu = SensorSpec {

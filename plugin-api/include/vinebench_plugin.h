@@ -50,7 +50,8 @@
  * `create_with` with `vb_create_info` and the typed `vb_rig`. Revision 3: an event's
  * `loop_matches` (in `events_toml`; no layout changed). Revision 4: localisation in a saved
  * map: `can_localize` in the requirements, `vb_output`'s `saved_map*` fields, the map and
- * `initial_guess` in `vb_create_info`, and VB_POSE_SEARCHING.
+ * `initial_guess` in `vb_create_info`, and VB_POSE_SEARCHING. Revision 5: GNSS: the
+ * sensor kind "gnss", `vb_gnss`, `on_gnss` and the event kind "gnss_rejected".
  *
  * Localisation (revision 4): a plugin whose requirements say `can_localize = true` may save
  * its map at `finish` (`saved_map*`: opaque bytes in a format it names and versions; the
@@ -76,7 +77,7 @@ extern "C" {
 #endif
 
 #define VB_ABI_VERSION 1u
-#define VB_ABI_REVISION 4u
+#define VB_ABI_REVISION 5u
 
 /* Return values of the message callbacks and of `finish`. */
 #define VB_NO_POSE 0  /* handled; no estimate with this message */
@@ -102,6 +103,33 @@ typedef struct vb_imu {
     double gyro_rps[3];
     double orientation_xyzw[4];
 } vb_imu;
+
+/* Revision 5: the quality of a GNSS fix (`vb_gnss.status`), best last. */
+#define VB_GNSS_NO_FIX 0u /* no fix: the position is NaN */
+#define VB_GNSS_SINGLE 1u /* single-point (code) solution: metres */
+#define VB_GNSS_FLOAT 2u  /* RTK, float ambiguities: decimetres */
+#define VB_GNSS_FIXED 3u  /* RTK, fixed ambiguities: centimetres */
+
+/* Revision 5: one GNSS epoch of the rig's "gnss" sensor (its mount is the antenna's lever
+ * arm from the base), stamped at the epoch, delivered after the receiver's latency.
+ * `position_enu_m` is east, north, up of the antenna from the datum (the gnss sensor's
+ * intrinsics `datum_latitude_deg`, `datum_longitude_deg`, `datum_altitude_m`), with its
+ * reported covariance (row-major 3 x 3, m^2); the same fix in WGS-84 as
+ * sensor_msgs/NavSatFix has it. Without a fix the position and geodetic fields are NaN
+ * and the covariance zeros. Nothing is checked for the plugin: refuse a fix whose position
+ * is not finite or whose covariance is not symmetric positive definite (with a
+ * "gnss_rejected" event), never trust it. */
+typedef struct vb_gnss {
+    int64_t stamp_ns;
+    uint32_t status;     /* VB_GNSS_* */
+    uint32_t satellites; /* used: above the mask and in view */
+    double position_enu_m[3];
+    double covariance_enu_m2[9];
+    double latitude_deg;
+    double longitude_deg;
+    double altitude_m; /* ellipsoidal */
+    double hdop;       /* NaN under four satellites */
+} vb_gnss;
 
 /* Wheel odometry: forward speed and yaw rate of the base from the encoders, and the pose
  * integrated from them (`odom_from_base`, starting at the identity). */
@@ -180,8 +208,8 @@ typedef struct vb_output {
     const vb_grid *grid; /* NULL: no grid */
     /* Events as TOML `[[events]]` tables with `stamp_ns`, `kind` (one of the registry's
      * names, docs/plugin-contract.md "Event kinds": "loop_closure_accepted",
-     * "loop_closure_rejected", "tracking_lost", "tracking_recovered"), `detail`, and for a
-     * loop closure `loop_stamps_ns = [current, matched]` and optionally
+     * "loop_closure_rejected", "tracking_lost", "tracking_recovered", "gnss_rejected"),
+     * `detail`, and for a loop closure `loop_stamps_ns = [current, matched]` and optionally
      * `loop_relative_pose = [x, y, z, qx, qy, qz, qw]` (matched_from_current) and
      * `loop_matches = [[u_current, v_current, u_matched, v_matched], ...]` (pixels of the
      * colour frames at the two stamps; revision 3); NULL or "": none. An unknown kind fails
@@ -212,7 +240,7 @@ typedef struct vb_param {
 /* One sensor of the rig: the fields of the rig TOML's `[[sensors]]` table. */
 typedef struct vb_sensor {
     const char *name; /* NUL-terminated, e.g. "lidar", "camera", "scan_front" */
-    const char *kind; /* "imu", "wheel_odometry", "lidar", "scan2d" or "rgbd" */
+    const char *kind; /* "imu", "wheel_odometry", "lidar", "scan2d", "rgbd" or "gnss" (rev. 5) */
     double rate_hz;
     double base_from_sensor_xyz[3];  /* metres */
     double base_from_sensor_xyzw[4]; /* unit quaternion (x, y, z, w) */
@@ -283,7 +311,7 @@ typedef struct vb_plugin {
     uint32_t struct_size; /* sizeof(vb_plugin) */
     const char *name;     /* short name the host finds it by, e.g. "my-slam" */
     const char *version;
-    /* TOML: `sensors = [...]` of "imu", "wheel_odometry", "lidar", "scan2d", "rgbd",
+    /* TOML: `sensors = [...]` of "imu", "wheel_odometry", "lidar", "scan2d", "rgbd", "gnss",
      * `mode = "online"` or "offline", and (revision 4) `can_localize = true` for a plugin
      * that `create_with` can start from a saved map. */
     const char *requirements_toml;
@@ -314,6 +342,10 @@ typedef struct vb_plugin {
     /* Creates the system as `create` does, with the rig also typed. Where present the host
      * calls it instead of `create` (which may then be NULL). */
     void *(*create_with)(const vb_create_info *info);
+
+    /* Revision 5 (may be NULL; absent from a table whose `struct_size` ends before it). */
+    /* A GNSS epoch, for a plugin whose requirements list "gnss". */
+    int32_t (*on_gnss)(void *self, const vb_gnss *gnss, vb_pose *estimate);
 } vb_plugin;
 
 /* sizeof(vb_plugin) of revision 1, for hosts and tests: a table of at least this size. */

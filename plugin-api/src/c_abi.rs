@@ -11,7 +11,9 @@
 use std::ffi::{CStr, CString, c_char, c_void};
 use std::path::Path;
 
-use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::messages::{
+    Gnss, Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry,
+};
 use crate::rig::Rig;
 use crate::system::{
     InitialGuess, MapStart, OccupancyGrid, PluginError, PoseStatus, Requirements, SavedMap,
@@ -23,7 +25,7 @@ use crate::system::{
 pub const ABI_VERSION: u32 = 1;
 /// The header's `VB_ABI_REVISION`: how many rounds of appended fields it has
 /// (docs/plugin-contract.md, "Versions").
-pub const ABI_REVISION: u32 = 4;
+pub const ABI_REVISION: u32 = 5;
 /// The symbol a C plugin exports.
 pub const SYMBOL: &[u8] = b"vinebench_plugin_v1\0";
 
@@ -161,6 +163,8 @@ struct Table {
     // Revision 2.
     requirements_for: Option<unsafe extern "C" fn(*const c_char) -> *const c_char>,
     create_with: Option<unsafe extern "C" fn(*const CreateInfoC) -> *mut c_void>,
+    // Revision 5.
+    on_gnss: Callback<Gnss>,
 }
 
 /// `sizeof(vb_plugin)` of revision 1: the smallest table the host accepts.
@@ -576,6 +580,11 @@ impl CInstance {
         self.call(self.table.on_rgbd, &m, "on_rgbd")
     }
 
+    /// A GNSS epoch (revision 5; a table without `on_gnss` ignores it).
+    pub fn on_gnss(&mut self, gnss: &Gnss) -> Result<Option<Pose>, PluginError> {
+        self.call(self.table.on_gnss, gnss, "on_gnss")
+    }
+
     /// The plugin's output, copied out of its memory.
     pub fn finish(&mut self) -> Result<SlamOutput, PluginError> {
         let finish = self.table.finish.expect("checked at load");
@@ -869,7 +878,24 @@ mod tests {
                 on_rgbd,
                 finish,
                 requirements_for,
-                create_with
+                create_with,
+                on_gnss
+            ]
+        );
+        layout!(
+            out,
+            "vb_gnss",
+            Gnss,
+            [
+                stamp_ns,
+                status,
+                satellites,
+                position_enu_m,
+                covariance_enu_m2,
+                latitude_deg,
+                longitude_deg,
+                altitude_m,
+                hdop
             ]
         );
         out.push_str(&format!(

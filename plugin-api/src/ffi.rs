@@ -22,7 +22,9 @@ use abi_stable::sabi_types::VersionStrings;
 use abi_stable::std_types::{RBox, ROption, RResult, RSlice, RStr, RString, RVec};
 use abi_stable::{StableAbi, declare_root_module_statics, package_version_strings, sabi_trait};
 
-use crate::messages::{Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::messages::{
+    Gnss, Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry,
+};
 use crate::rig::Rig;
 use crate::system::{
     Event, InitialGuess, MapStart, OccupancyGrid, PluginError, PoseStatus, SavedMap, SlamOutput,
@@ -164,6 +166,12 @@ pub trait SlamFfi: Send {
     fn take_saved_map(&mut self) -> ROption<SavedMapFfi> {
         ROption::RNone
     }
+    /// Revision 5: a GNSS epoch. The default (a plugin built before it, which never asks for
+    /// GNSS) ignores it.
+    fn on_gnss(&mut self, gnss: &Gnss) -> RResult<ROption<Pose>, RString> {
+        let _ = gnss;
+        RResult::ROk(ROption::RNone)
+    }
 }
 
 /// A created plugin behind the stable ABI.
@@ -253,6 +261,10 @@ impl<T: SlamSystem> SlamFfi for Adapter<T> {
     fn status(&self) -> PoseStatus {
         // A panic here cannot be reported as an error: it counts as searching.
         catch_unwind(AssertUnwindSafe(|| self.0.status())).unwrap_or(PoseStatus::Searching)
+    }
+
+    fn on_gnss(&mut self, gnss: &Gnss) -> RResult<ROption<Pose>, RString> {
+        pose_result(guard(|| self.0.on_gnss(gnss)))
     }
 
     fn take_saved_map(&mut self) -> ROption<SavedMapFfi> {

@@ -48,7 +48,8 @@ mod system;
 
 pub use loader::{Door, LoadError, LoadedPlugin, PluginInstance, load};
 pub use messages::{
-    Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry, gray_from_rgb,
+    Gnss, GnssStatus, Imu, LaserScan, LidarPoint, PointCloud, Pose, RgbdFrame, WheelOdometry,
+    gray_from_rgb,
 };
 pub use parameters::Parameters;
 pub use rig::{Pinhole, Rig, SensorKind, SensorSpec};

@@ -13,7 +13,7 @@ use crate::ffi::{
     LaserScanFfi, MapStartFfi, PluginModuleRef, PointCloudFfi, RgbdFrameFfi, SlamBox,
     output_from_ffi, saved_map_from_ffi,
 };
-use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::messages::{Gnss, Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::Rig;
 use crate::system::{MapStart, PluginError, PoseStatus, Requirements, SlamOutput};
 
@@ -346,6 +346,14 @@ impl PluginInstance {
             depth_m: f.depth_m.into(),
             intrinsics: f.intrinsics,
         }))
+    }
+
+    /// A GNSS epoch (revision 5).
+    pub fn on_gnss(&mut self, gnss: &Gnss) -> Result<Option<Pose>, PluginError> {
+        match self {
+            Self::Rust(inner) => pose(inner.on_gnss(gnss)),
+            Self::C(c) => c.on_gnss(gnss),
+        }
     }
 
     /// The status of the pose last returned (revision 4; plugins built before it:

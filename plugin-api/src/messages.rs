@@ -151,3 +151,89 @@ pub fn gray_from_rgb(rgb: &[u8], width: usize, height: usize) -> Vec<u8> {
         })
         .collect()
 }
+
+/// The quality of a GNSS fix (revision 5), best last, as NMEA's GGA orders them.
+#[repr(u32)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum GnssStatus {
+    /// No fix: the position is NaN.
+    NoFix = 0,
+    /// A single-point (code) solution: metres.
+    Single = 1,
+    /// RTK with float ambiguities: decimetres.
+    Float = 2,
+    /// RTK with fixed ambiguities: centimetres.
+    Fixed = 3,
+}
+
+impl GnssStatus {
+    /// The status's name as it crosses the Python door (`no_fix`, `single`, `float`, `fixed`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::NoFix => "no_fix",
+            Self::Single => "single",
+            Self::Float => "float",
+            Self::Fixed => "fixed",
+        }
+    }
+}
+
+/// One GNSS epoch (revision 5): the antenna's position (the rig's `gnss` sensor, its mount
+/// the lever arm from the base) as the receiver solved it, stamped at the epoch and
+/// delivered after the receiver's latency.
+///
+/// Positions are in the local east-north-up frame whose origin is the datum (the rig's
+/// `gnss` intrinsics `datum_latitude_deg`, `datum_longitude_deg`, `datum_altitude_m`); the
+/// same fix is also given in WGS-84, as `sensor_msgs/NavSatFix` has it. Nothing here is
+/// checked for the plugin: read it through [`Gnss::position`] and [`Gnss::covariance`],
+/// which refuse a fix without a finite position or a covariance that is not symmetric
+/// positive definite.
+#[repr(C)]
+#[derive(StableAbi, Debug, Clone, Copy, PartialEq)]
+pub struct Gnss {
+    pub stamp_ns: i64,
+    pub status: GnssStatus,
+    /// Satellites used (above the mask and in view).
+    pub satellites: u32,
+    /// East, north, up of the antenna from the datum, metres; NaN without a fix.
+    pub position_enu_m: [f64; 3],
+    /// The reported covariance of `position_enu_m`, row-major 3 x 3, m²; zeros without a fix.
+    pub covariance_enu_m2: [f64; 9],
+    /// WGS-84 latitude and longitude (degrees) and ellipsoidal height (m); NaN without a fix.
+    pub latitude_deg: f64,
+    pub longitude_deg: f64,
+    pub altitude_m: f64,
+    /// Horizontal dilution of precision; NaN under four satellites.
+    pub hdop: f64,
+}
+
+impl Gnss {
+    /// The position, where the status is a fix and every coordinate finite.
+    pub fn position(&self) -> Option<nalgebra::Vector3<f64>> {
+        let p = nalgebra::Vector3::from(self.position_enu_m);
+        (self.status != GnssStatus::NoFix && p.iter().all(|v| v.is_finite())).then_some(p)
+    }
+
+    /// The covariance, where it is finite, symmetric and positive definite.
+    pub fn covariance(&self) -> Option<nalgebra::Matrix3<f64>> {
+        let c = nalgebra::Matrix3::from_row_slice(&self.covariance_enu_m2);
+        let finite = c.iter().all(|v| v.is_finite());
+        let symmetric = (c - c.transpose()).abs().max() <= 1e-9 * c.abs().max().max(1e-300);
+        (finite && symmetric && c.cholesky().is_some()).then_some(c)
+    }
+
+    /// Why this fix cannot be used, if it cannot: no fix, a position that is not finite, a
+    /// covariance that is not symmetric positive definite. A plugin rejects such a fix
+    /// (with a `gnss_rejected` event), never trusts it.
+    pub fn problem(&self) -> Option<&'static str> {
+        if self.status == GnssStatus::NoFix {
+            Some("no fix")
+        } else if self.position().is_none() {
+            Some("a fix without a finite position")
+        } else if self.covariance().is_none() {
+            Some("a covariance that is not symmetric positive definite")
+        } else {
+            None
+        }
+    }
+}

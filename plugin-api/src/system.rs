@@ -3,7 +3,7 @@
 use abi_stable::StableAbi;
 use serde::{Deserialize, Serialize};
 
-use crate::messages::{Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
+use crate::messages::{Gnss, Imu, LaserScan, PointCloud, Pose, RgbdFrame, WheelOdometry};
 use crate::rig::{Rig, SensorKind};
 
 /// An error of a plugin, shown to the user as one line.
@@ -147,15 +147,17 @@ pub enum EventKind {
     LoopClosureRejected,
     TrackingLost,
     TrackingRecovered,
+    GnssRejected,
 }
 
 impl EventKind {
     /// Every kind this plugin-api knows, in the order they were added.
-    pub const ALL: [EventKind; 4] = [
+    pub const ALL: [EventKind; 5] = [
         Self::LoopClosureAccepted,
         Self::LoopClosureRejected,
         Self::TrackingLost,
         Self::TrackingRecovered,
+        Self::GnssRejected,
     ];
 
     /// The kind's name as it crosses the doors (`loop_closure_accepted`, ...).
@@ -165,6 +167,7 @@ impl EventKind {
             Self::LoopClosureRejected => "loop_closure_rejected",
             Self::TrackingLost => "tracking_lost",
             Self::TrackingRecovered => "tracking_recovered",
+            Self::GnssRejected => "gnss_rejected",
         }
     }
 
@@ -179,6 +182,9 @@ impl EventKind {
             }
             Self::TrackingLost => "the system lost track (no pose until it recovers)",
             Self::TrackingRecovered => "the system tracks again after being lost",
+            Self::GnssRejected => {
+                "a GNSS fix the system refused (no fix, not finite, a bad covariance, or outside its gate)"
+            }
         }
     }
 
@@ -464,6 +470,14 @@ pub trait SlamSystem: Sized + Send + 'static {
 
     fn on_rgbd(&mut self, frame: &RgbdFrame<'_>) -> Result<Option<Pose>, PluginError> {
         let _ = frame;
+        Ok(None)
+    }
+
+    /// A GNSS epoch (revision 5), for a system that asks for [`SensorKind::Gnss`]. Read it
+    /// through [`Gnss::problem`], [`Gnss::position`] and [`Gnss::covariance`]: a fix may be
+    /// absent, and a broken receiver may send NaN or a zero covariance.
+    fn on_gnss(&mut self, gnss: &Gnss) -> Result<Option<Pose>, PluginError> {
+        let _ = gnss;
         Ok(None)
     }
 

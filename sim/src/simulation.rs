@@ -24,6 +24,8 @@ pub struct SensorSet {
     pub lidar: bool,
     pub scan2d: bool,
     pub rgbd: bool,
+    /// The GNSS receiver, where the world has one (`sensors.gnss`).
+    pub gnss: bool,
 }
 
 impl SensorSet {
@@ -34,13 +36,14 @@ impl SensorSet {
         lidar: true,
         scan2d: true,
         rgbd: true,
+        gnss: true,
     };
 }
 
 impl FromStr for SensorSet {
     type Err = String;
 
-    /// Parses `gt,imu,odom,lidar,scan2d,rgbd` (any subset, comma-separated) or `all`.
+    /// Parses `gt,imu,odom,lidar,scan2d,rgbd,gnss` (any subset, comma-separated) or `all`.
     fn from_str(s: &str) -> Result<Self, String> {
         let mut set = SensorSet::default();
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
@@ -52,9 +55,10 @@ impl FromStr for SensorSet {
                 "lidar" => set.lidar = true,
                 "scan2d" => set.scan2d = true,
                 "rgbd" => set.rgbd = true,
+                "gnss" => set.gnss = true,
                 other => {
                     return Err(format!(
-                        "unknown sensor '{other}' (known: gt, imu, odom, lidar, scan2d, rgbd, all)"
+                        "unknown sensor '{other}' (known: gt, imu, odom, lidar, scan2d, rgbd, gnss, all)"
                     ));
                 }
             }
@@ -290,6 +294,13 @@ impl Simulation {
                 Box::new(RgbdSensor::new(camera, end, rng("rgbd"))),
                 s.camera.clock_offset_ns,
             ));
+        }
+        if sensors.gnss && !s.gnss.is_absent() {
+            list.push(Box::new(crate::sensors::gnss::GnssSensor::new(
+                &s.gnss,
+                end,
+                rng("gnss"),
+            )));
         }
         Stream {
             scene: self.scene(),

@@ -8,6 +8,9 @@
 //!   mount;
 //! - `lidar/NNNNNN.bin` with `lidar/times.txt` (KITTI odometry velodyne format: x, y, z,
 //!   reflectance as little-endian f32, sensor frame; one sweep start time per line);
+//! - `gnss.csv`: the GNSS receiver's epochs (where the world has one): status,
+//!   satellites, the antenna's east-north-up position in the world frame and its variances,
+//!   WGS-84 latitude, longitude and height, HDOP;
 //! - `topview.png`.
 
 use std::path::PathBuf;
@@ -28,7 +31,7 @@ pub struct ExportArgs {
     /// lidar/times.txt (KITTI).
     #[arg(long)]
     pub out: PathBuf,
-    /// Sensors to export: any of gt,lidar,rgbd (ground truth always). The camera costs
+    /// Sensors to export: any of gt,lidar,rgbd,gnss (ground truth always). The camera costs
     /// about the route's time to render and 2 MB per frame on disk.
     #[arg(long, default_value = "gt,lidar,rgbd")]
     pub sensors: String,
@@ -42,7 +45,7 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
         .map_err(|e: String| anyhow::anyhow!("--sensors {}: {e}", args.sensors))?;
     anyhow::ensure!(
         !(chosen.imu || chosen.wheel_odometry || chosen.scan2d),
-        "--sensors {}: export writes gt, lidar and rgbd (simulate --out writes the others as CSV)",
+        "--sensors {}: export writes gt, lidar, rgbd and gnss (simulate --out writes the others as CSV)",
         args.sensors
     );
     let sensors = SensorSet {

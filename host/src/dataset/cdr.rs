@@ -39,6 +39,11 @@ impl CdrWriter {
         self.buf.push(u8::from(v));
     }
 
+    pub fn u16(&mut self, v: u16) {
+        self.align(2);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+
     pub fn u32(&mut self, v: u32) {
         self.align(4);
         self.buf.extend_from_slice(&v.to_le_bytes());
@@ -141,6 +146,10 @@ impl<'a> CdrReader<'a> {
 
     pub fn bool(&mut self) -> Result<bool, DatasetError> {
         Ok(self.u8()? != 0)
+    }
+
+    pub fn u16(&mut self) -> Result<u16, DatasetError> {
+        Ok(u16::from_le_bytes(self.array(2)?))
     }
 
     pub fn u32(&mut self) -> Result<u32, DatasetError> {

@@ -3,6 +3,7 @@
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use sim::camera::RgbdImage;
+use sim::sensors::gnss::{FixStatus, GnssFix};
 use sim::sensors::{
     GroundTruth, ImuSample, LaserScan, LidarPoint, LidarScan, RgbdFrame, ScanSide, WheelOdometry,
 };
@@ -39,6 +40,58 @@ fn skip_f64(r: &mut CdrReader<'_>, n: usize) -> Result<(), DatasetError> {
         r.f64()?;
     }
     Ok(())
+}
+
+/// A `sensor_msgs/NavSatFix` as [`super::encode::nav_sat_fix`] writes it: the geodetic
+/// position, `None` without a fix.
+pub(crate) fn nav_sat_fix(data: &[u8]) -> Result<(i64, Option<[f64; 3]>), DatasetError> {
+    let mut r = CdrReader::new(data)?;
+    let (stamp_ns, _) = header(&mut r)?;
+    let status = r.u8()? as i8;
+    r.u16()?;
+    let geodetic = [r.f64()?, r.f64()?, r.f64()?];
+    skip_f64(&mut r, 9)?;
+    r.u8()?;
+    Ok((stamp_ns, (status >= 0).then_some(geodetic)))
+}
+
+/// A `vinebench_msgs/GnssEnu` ([`super::encode::gnss_enu`]) with the geodetic position of
+/// the NavSatFix just before it.
+pub(crate) fn gnss_enu(
+    data: &[u8],
+    (fix_stamp_ns, geodetic): (i64, Option<[f64; 3]>),
+) -> Result<GnssFix, DatasetError> {
+    let mut r = CdrReader::new(data)?;
+    let (stamp_ns, _) = header(&mut r)?;
+    if stamp_ns != fix_stamp_ns {
+        return Err(DatasetError::decode(format!(
+            "a /gnss/enu at {stamp_ns} ns after a /gnss/fix at {fix_stamp_ns} ns"
+        )));
+    }
+    let status = match r.u8()? {
+        0 => FixStatus::None,
+        1 => FixStatus::Single,
+        2 => FixStatus::Float,
+        3 => FixStatus::Fixed,
+        other => return Err(DatasetError::decode(format!("GNSS status {other}"))),
+    };
+    let satellites = r.u32()? as usize;
+    let position = vector3(&mut r)?;
+    let variance_enu_m2 = [r.f64()?, r.f64()?, r.f64()?];
+    let (hdop, vdop) = (r.f64()?, r.f64()?);
+    let latency_ns = i64::from(r.i32()?) * 1_000_000_000 + i64::from(r.u32()?);
+    let known = |v: f64| (!v.is_nan()).then_some(v);
+    Ok(GnssFix {
+        stamp_ns,
+        status,
+        position_enu_m: (status != FixStatus::None).then_some(position),
+        variance_enu_m2,
+        satellites,
+        hdop: known(hdop),
+        vdop: known(vdop),
+        geodetic,
+        latency_ns,
+    })
 }
 
 pub(crate) fn imu(data: &[u8]) -> Result<ImuSample, DatasetError> {

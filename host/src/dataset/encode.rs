@@ -1,11 +1,14 @@
 //! Simulator messages to ROS 2 messages in CDR (field order as in [`super::schemas`]).
 
 use nalgebra::{Isometry3, Vector3};
+use sim::sensors::gnss::{FixStatus, GnssFix};
 use sim::sensors::{GroundTruth, ImuSample, LaserScan, LidarScan, RgbdFrame, WheelOdometry};
 
 use super::EPOCH_NS;
 use super::cdr::CdrWriter;
-use super::topics::{BASE_FRAME, CAMERA_FRAME, IMU_FRAME, LIDAR_FRAME, MAP_FRAME, ODOM_FRAME};
+use super::topics::{
+    BASE_FRAME, CAMERA_FRAME, GNSS_FRAME, IMU_FRAME, LIDAR_FRAME, MAP_FRAME, ODOM_FRAME,
+};
 
 /// `sensor_msgs/PointField` datatypes.
 pub(crate) const UINT16: u8 = 4;
@@ -57,6 +60,57 @@ fn zeros(w: &mut CdrWriter, n: usize) {
     for _ in 0..n {
         w.f64(0.0);
     }
+}
+
+/// `sensor_msgs/NavSatFix` of a GNSS epoch, in the antenna's frame: the RTK statuses as
+/// GBAS_FIX (ground-based augmentation, as u-blox's ROS driver reports RTK), single as FIX,
+/// without a fix NO_FIX with NaN coordinates; the covariance diagonal, east-north-up.
+pub(crate) fn nav_sat_fix(m: &GnssFix) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(160);
+    header(&mut w, m.stamp_ns, GNSS_FRAME);
+    let status: i8 = match m.status {
+        FixStatus::None => -1,
+        FixStatus::Single => 0,
+        FixStatus::Float | FixStatus::Fixed => 2,
+    };
+    w.u8(status as u8);
+    w.u16(1); // SERVICE_GPS
+    let [lat, lon, alt] = m.geodetic.unwrap_or([f64::NAN; 3]);
+    for v in [lat, lon, alt] {
+        w.f64(v);
+    }
+    let [ve, vn, vu] = m.variance_enu_m2;
+    for v in [ve, 0.0, 0.0, 0.0, vn, 0.0, 0.0, 0.0, vu] {
+        w.f64(v);
+    }
+    // COVARIANCE_TYPE_DIAGONAL_KNOWN, or UNKNOWN without a fix.
+    w.u8(if m.position_enu_m.is_some() { 2 } else { 0 });
+    w.finish()
+}
+
+/// `vinebench_msgs/GnssEnu` of a GNSS epoch (see `schemas`): NaN for what is absent.
+pub(crate) fn gnss_enu(m: &GnssFix) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(160);
+    header(&mut w, m.stamp_ns, GNSS_FRAME);
+    w.u8(match m.status {
+        FixStatus::None => 0,
+        FixStatus::Single => 1,
+        FixStatus::Float => 2,
+        FixStatus::Fixed => 3,
+    });
+    w.u32(m.satellites as u32);
+    vector3(
+        &mut w,
+        &m.position_enu_m.unwrap_or(Vector3::repeat(f64::NAN)),
+    );
+    for v in m.variance_enu_m2 {
+        w.f64(v);
+    }
+    w.f64(m.hdop.unwrap_or(f64::NAN));
+    w.f64(m.vdop.unwrap_or(f64::NAN));
+    w.i32(m.latency_ns.div_euclid(1_000_000_000) as i32);
+    w.u32(m.latency_ns.rem_euclid(1_000_000_000) as u32);
+    w.finish()
 }
 
 pub(crate) fn imu(m: &ImuSample) -> Vec<u8> {

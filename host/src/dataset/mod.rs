@@ -9,7 +9,9 @@
 //!
 //! | topic | type | frame | from |
 //! |---|---|---|---|
-//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | `base_link` → `imu_link`, `velodyne`, `laser_front`, `laser_back`, `camera_color_optical_frame` | the mounts' `base_from_sensor` (the camera's with the rotation to its optical frame), once at t = 0 |
+//! | `/tf_static` | `tf2_msgs/msg/TFMessage` | `base_link` → `imu_link`, `velodyne`, `laser_front`, `laser_back`, `camera_color_optical_frame`, `gnss_link` (where the world has a receiver) | the mounts' `base_from_sensor` (the camera's with the rotation to its optical frame), once at t = 0 |
+//! | `/gnss/fix` | `sensor_msgs/msg/NavSatFix` | `gnss_link` | [`sim::sensors::gnss::GnssFix`] in WGS-84 from the world's datum, logged after the receiver's latency: RTK float and fixed as `STATUS_GBAS_FIX`, single as `STATUS_FIX`, none as `STATUS_NO_FIX` with NaN coordinates; the covariance diagonal (east, north, up) |
+//! | `/gnss/enu` | `vinebench_msgs/msg/GnssEnu` (its definition in the file's schema) | `gnss_link` | the same epoch as NavSatFix cannot say it: status (none, single, float, fixed), satellites, east-north-up position in the world frame, variances, HDOP, VDOP, latency |
 //! | `/imu` | `sensor_msgs/msg/Imu` | `imu_link` | [`sim::sensors::ImuSample`]; no orientation (`orientation_covariance[0] = -1`) |
 //! | `/points` | `sensor_msgs/msg/PointCloud2` | `velodyne` | [`sim::sensors::LidarScan`]: x, y, z, intensity (f32), ring (u16), time (f32, s after the stamp), as LIO-SAM reads them |
 //! | `/scan_front`, `/scan_back` | `sensor_msgs/msg/LaserScan` | `laser_front`, `laser_back` | [`sim::sensors::LaserScan`] |

@@ -12,7 +12,7 @@ use sim::sensors::Message;
 
 use super::mcap_file::McapFile;
 use super::topics::{
-    CAMERA_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
+    CAMERA_FRAME, GNSS_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
 };
 use super::wire::{ScanTiming, to_ros};
 use super::{DatasetError, encode};
@@ -55,6 +55,9 @@ impl Recorder {
             channels,
             scan_timing: ScanTiming::new(config),
         };
+        let [x, y, z] = s.gnss.mount_xyz_m;
+        let gnss =
+            (!s.gnss.is_absent()).then(|| (GNSS_FRAME, nalgebra::Isometry3::translation(x, y, z)));
         let mounts = [
             (IMU_FRAME, s.imu.mount.base_from_sensor()),
             (LIDAR_FRAME, s.lidar.mount.base_from_sensor()),
@@ -72,6 +75,7 @@ impl Recorder {
                 s.camera.mount.base_from_sensor() * sim::camera::camera_from_optical(),
             ),
         ];
+        let mounts: Vec<_> = mounts.into_iter().chain(gnss).collect();
         recorder.put(Topic::TfStatic, 0, &encode::tf_message(0, &mounts))?;
         Ok(recorder)
     }

@@ -100,6 +100,42 @@ const DEFINITIONS: &[(&str, &str, &[&str])] = &[
         ],
     ),
     (
+        "sensor_msgs/NavSatStatus",
+        "int8 STATUS_NO_FIX =  -1\nint8 STATUS_FIX =      0\nint8 STATUS_SBAS_FIX = 1\n\
+         int8 STATUS_GBAS_FIX = 2\nint8 status\n\
+         uint16 SERVICE_GPS =     1\nuint16 SERVICE_GLONASS = 2\nuint16 SERVICE_COMPASS = 4\n\
+         uint16 SERVICE_GALILEO = 8\nuint16 service\n",
+        &[],
+    ),
+    (
+        "sensor_msgs/NavSatFix",
+        "std_msgs/Header header\n\
+         NavSatStatus status\n\
+         float64 latitude\nfloat64 longitude\nfloat64 altitude\n\
+         float64[9] position_covariance\n\
+         uint8 COVARIANCE_TYPE_UNKNOWN = 0\nuint8 COVARIANCE_TYPE_APPROXIMATED = 1\n\
+         uint8 COVARIANCE_TYPE_DIAGONAL_KNOWN = 2\nuint8 COVARIANCE_TYPE_KNOWN = 3\n\
+         uint8 position_covariance_type\n",
+        &["std_msgs/Header", "sensor_msgs/NavSatStatus"],
+    ),
+    // vinebench's own: what NavSatFix cannot say (the RTK status, satellites, DOPs, the
+    // latency) and the fix in the world's east-north-up frame, bit for bit.
+    (
+        "vinebench_msgs/GnssEnu",
+        "std_msgs/Header header\n\
+         uint8 NO_FIX = 0\nuint8 SINGLE = 1\nuint8 FLOAT = 2\nuint8 FIXED = 3\nuint8 status\n\
+         uint32 satellites\n\
+         geometry_msgs/Point position\n\
+         float64[3] position_variance\n\
+         float64 hdop\nfloat64 vdop\n\
+         builtin_interfaces/Duration latency\n",
+        &[
+            "std_msgs/Header",
+            "geometry_msgs/Point",
+            "builtin_interfaces/Duration",
+        ],
+    ),
+    (
         "sensor_msgs/PointField",
         "uint8 INT8    = 1\nuint8 UINT8   = 2\nuint8 INT16   = 3\nuint8 UINT16  = 4\n\
          uint8 INT32   = 5\nuint8 UINT32  = 6\nuint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n\

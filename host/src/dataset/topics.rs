@@ -13,6 +13,8 @@ pub const MAP_FRAME: &str = "map";
 /// which the registered depth image shares, named as the RealSense and Kinect ROS drivers
 /// name theirs.
 pub const CAMERA_FRAME: &str = "camera_color_optical_frame";
+/// Frame of the GNSS antenna (its phase centre), as `navsat_transform` expects a `gps` frame.
+pub const GNSS_FRAME: &str = "gnss_link";
 
 /// A topic of a recording.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -28,10 +30,12 @@ pub enum Topic {
     ColorImage,
     DepthImage,
     CameraInfo,
+    GnssFix,
+    GnssEnu,
 }
 
 impl Topic {
-    pub const ALL: [Topic; 11] = [
+    pub const ALL: [Topic; 13] = [
         Topic::TfStatic,
         Topic::GroundTruth,
         Topic::GroundTruthTwist,
@@ -43,6 +47,8 @@ impl Topic {
         Topic::ColorImage,
         Topic::DepthImage,
         Topic::CameraInfo,
+        Topic::GnssFix,
+        Topic::GnssEnu,
     ];
 
     pub fn name(self) -> &'static str {
@@ -58,6 +64,8 @@ impl Topic {
             Topic::ColorImage => "/camera/color/image_raw",
             Topic::DepthImage => "/camera/depth/image_raw",
             Topic::CameraInfo => "/camera/color/camera_info",
+            Topic::GnssFix => "/gnss/fix",
+            Topic::GnssEnu => "/gnss/enu",
         }
     }
 
@@ -73,6 +81,8 @@ impl Topic {
             Topic::Points => "sensor_msgs/msg/PointCloud2",
             Topic::ColorImage | Topic::DepthImage => "sensor_msgs/msg/Image",
             Topic::CameraInfo => "sensor_msgs/msg/CameraInfo",
+            Topic::GnssFix => "sensor_msgs/msg/NavSatFix",
+            Topic::GnssEnu => "vinebench_msgs/msg/GnssEnu",
         }
     }
 
@@ -90,6 +100,7 @@ impl Topic {
             Topic::ScanFront | Topic::ScanBack => sensors.scan2d,
             Topic::Points => sensors.lidar,
             Topic::ColorImage | Topic::DepthImage | Topic::CameraInfo => sensors.rgbd,
+            Topic::GnssFix | Topic::GnssEnu => sensors.gnss,
         }
     }
 }

@@ -56,6 +56,15 @@ pub fn to_ros(message: &Message, timing: &ScanTiming) -> Vec<RosMessage> {
             ),
         ],
         Message::Imu(m) => vec![(Topic::Imu, m.stamp_ns, encode::imu(m))],
+        // Available after the receiver's latency; the NavSatFix first, completed by the
+        // east-north-up message.
+        Message::Gnss(m) => {
+            let ready = m.stamp_ns + m.latency_ns;
+            vec![
+                (Topic::GnssFix, ready, encode::nav_sat_fix(m)),
+                (Topic::GnssEnu, ready, encode::gnss_enu(m)),
+            ]
+        }
         Message::WheelOdometry(m) => vec![(Topic::Odom, m.stamp_ns, encode::odometry(m))],
         Message::Lidar(m) => vec![(
             Topic::Points,
@@ -88,6 +97,8 @@ pub struct Assembler {
     /// A camera frame's colour and depth images waiting for its camera info.
     color: Option<Plane<u8>>,
     depth: Option<Plane<f32>>,
+    /// A `/gnss/fix` (stamp, geodetic position) waiting for its `/gnss/enu`.
+    fix: Option<(i64, Option<[f64; 3]>)>,
 }
 
 impl Assembler {
@@ -142,6 +153,21 @@ impl Assembler {
                     ));
                 };
                 Message::Rgbd(decode::camera_info(data, color, depth)?)
+            }
+            Topic::GnssFix => {
+                if self.fix.is_some() {
+                    return Err(DatasetError::decode(
+                        "a /gnss/fix follows one without its /gnss/enu",
+                    ));
+                }
+                self.fix = Some(decode::nav_sat_fix(data)?);
+                return Ok(None);
+            }
+            Topic::GnssEnu => {
+                let fix = self.fix.take().ok_or_else(|| {
+                    DatasetError::decode("a /gnss/enu without the /gnss/fix before it")
+                })?;
+                Message::Gnss(decode::gnss_enu(data, fix)?)
             }
             Topic::TfStatic => return Ok(None),
         }))

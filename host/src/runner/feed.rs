@@ -50,6 +50,7 @@ pub fn wants(sensors: &SensorSet, message: &Message) -> bool {
         Message::Lidar(_) => sensors.lidar,
         Message::Scan2d(_) => sensors.scan2d,
         Message::Rgbd(_) => sensors.rgbd,
+        Message::Gnss(_) => sensors.gnss,
     }
 }
 
@@ -62,6 +63,7 @@ pub fn union(sets: &[SensorSet]) -> SensorSet {
         lidar: a.lidar | b.lidar,
         scan2d: a.scan2d | b.scan2d,
         rgbd: a.rgbd | b.rgbd,
+        gnss: a.gnss | b.gnss,
     })
 }
 

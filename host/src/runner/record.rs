@@ -46,6 +46,7 @@ pub fn union(a: SensorSet, b: SensorSet) -> SensorSet {
         lidar: a.lidar || b.lidar,
         scan2d: a.scan2d || b.scan2d,
         rgbd: a.rgbd || b.rgbd,
+        gnss: a.gnss || b.gnss,
     }
 }
 
@@ -58,6 +59,7 @@ pub fn sensor_names(set: SensorSet) -> String {
         (set.lidar, "lidar"),
         (set.scan2d, "scan2d"),
         (set.rgbd, "rgbd"),
+        (set.gnss, "gnss"),
     ]
     .iter()
     .filter(|(on, _)| *on)

@@ -33,6 +33,7 @@ pub fn sensor_set(kinds: &[SensorKind]) -> SensorSet {
             SensorKind::Lidar => set.lidar = true,
             SensorKind::Scan2d => set.scan2d = true,
             SensorKind::Rgbd => set.rgbd = true,
+            SensorKind::Gnss => set.gnss = true,
         }
     }
     set
@@ -92,7 +93,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         .map_err(|e| anyhow!("plugin {}: {e}", plugin.name))?;
     let sensors = sensor_set(&requirements.sensors);
     let sim = Simulation::new(&config, &job.scenario, job.seed)?;
-    let rig = crate::rig::rig(&config);
+    let rig = crate::rig::rig_for(&config, &requirements.sensors);
     write_run_toml(job, &config, &plugin, &requirements)?;
     write_placed(job, &config, &sim)?;
     let mut instance = match &job.localize {
@@ -311,6 +312,30 @@ pub fn plugin_point(p: &sim::sensors::LidarPoint) -> LidarPoint {
     }
 }
 
+/// A simulated GNSS epoch as plugins receive it: without a fix, NaN position and zero
+/// covariance.
+pub fn plugin_gnss(g: &sim::sensors::gnss::GnssFix) -> plugin_api::Gnss {
+    use sim::sensors::gnss::FixStatus;
+    let [ve, vn, vu] = g.variance_enu_m2;
+    let [lat, lon, alt] = g.geodetic.unwrap_or([f64::NAN; 3]);
+    plugin_api::Gnss {
+        stamp_ns: g.stamp_ns,
+        status: match g.status {
+            FixStatus::None => plugin_api::GnssStatus::NoFix,
+            FixStatus::Single => plugin_api::GnssStatus::Single,
+            FixStatus::Float => plugin_api::GnssStatus::Float,
+            FixStatus::Fixed => plugin_api::GnssStatus::Fixed,
+        },
+        satellites: g.satellites as u32,
+        position_enu_m: g.position_enu_m.map_or([f64::NAN; 3], Into::into),
+        covariance_enu_m2: [ve, 0.0, 0.0, 0.0, vn, 0.0, 0.0, 0.0, vu],
+        latitude_deg: lat,
+        longitude_deg: lon,
+        altitude_m: alt,
+        hdop: g.hdop.unwrap_or(f64::NAN),
+    }
+}
+
 /// A pose must be finite with a unit quaternion: an invalid one fails the run, it is
 /// never evaluated.
 fn check(pose: &Pose, what: &str) -> anyhow::Result<()> {
@@ -361,6 +386,7 @@ pub(crate) fn deliver(
             depth_m: &f.image.depth_m,
             intrinsics: f.image.intrinsics,
         }),
+        Message::Gnss(g) => instance.on_gnss(&plugin_gnss(g)),
         Message::Scan2d(s) => instance.on_laser_scan(&LaserScan {
             stamp_ns: s.stamp_ns,
             sensor: s.side.name(),

@@ -17,13 +17,15 @@ Name the class in a bench file (see plugins/python-bridge/src/lib.rs for every k
 Lifecycle (the same as a Rust plugin's `SlamSystem`):
 
 1. `requirements(params)` (static): the sensor kinds to stream, of "imu",
-   "wheel_odometry", "lidar", "scan2d", "rgbd", as a list or as
+   "wheel_odometry", "lidar", "scan2d", "rgbd", "gnss" (revision 5), as a list or as
    {"sensors": [...], "mode": "online" | "offline"}.
 2. `__init__(params, rig)`: `params` is the bench file's table without the bridge's keys
    (module, class, path, venv); `rig` the sensor rig as a dict ({"sensors": [{name, kind,
    rate_hz, base_from_sensor_xyz, base_from_sensor_xyzw, intrinsics, noise}, ...]}).
 3. One method per sensor kind, called in time order: `on_imu`, `on_wheel_odometry`,
-   `on_point_cloud`, `on_laser_scan`, `on_rgbd` (absent methods are not called). Each
+   `on_point_cloud`, `on_laser_scan`, `on_rgbd`, `on_gnss` (revision 5; a fix may be
+   absent or broken: check `gnss.status`, that `gnss.position` is finite and
+   `gnss.covariance` positive definite) (absent methods are not called). Each
    returns None or `(stamp_ns, map_from_base)` with a 4x4 (or 3x4) transform: the host
    records these as the online trajectory. The messages' arrays are read-only numpy views
    of the host's buffers, valid during the call only: keep copies, not the arrays (a class
@@ -32,7 +34,8 @@ Lifecycle (the same as a Rust plugin's `SlamSystem`):
    `saved_map` (revision 4: `{"format": str, "version": int, "bytes": bytes}`, the map to
    localise in later, which the host keeps as the run's `map.bin`), optional
    `events` (dicts with `stamp_ns`, `kind` — "loop_closure_accepted",
-   "loop_closure_rejected", "tracking_lost" or "tracking_recovered" — `detail`, and for a
+   "loop_closure_rejected", "tracking_lost", "tracking_recovered" or "gnss_rejected" —
+   `detail`, and for a
    loop closure `loop_stamps_ns` = [current, matched] and optionally `loop_relative_pose`,
    matched_from_current as [x, y, z, qx, qy, qz, qw] or a 4x4, and `loop_matches`, the
    matched keypoints as an (N, 4) array of [u_current, v_current, u_matched, v_matched]
@@ -65,7 +68,7 @@ class SlamSystem:
     is optional): every method the bridge may call, with what it does when absent."""
 
     #: The contract revision this class was written for (docs/plugin-contract.md).
-    API_REVISION = 4
+    API_REVISION = 5
 
     @staticmethod
     def requirements(params):
@@ -76,8 +79,8 @@ class SlamSystem:
         pass
 
     # on_imu(imu), on_wheel_odometry(odom), on_point_cloud(cloud), on_laser_scan(scan),
-    # on_rgbd(frame): define those of the sensors you ask for; each returns None or
-    # (stamp_ns, 4x4 map_from_base).
+    # on_rgbd(frame), on_gnss(gnss): define those of the sensors you ask for; each returns
+    # None or (stamp_ns, 4x4 map_from_base).
 
     def finish(self):
         """The final trajectory and the rest (required)."""

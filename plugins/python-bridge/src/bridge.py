@@ -116,6 +116,31 @@ class RgbdFrame:
         return f"RgbdFrame(stamp_ns={self.stamp_ns}, {self.width}x{self.height})"
 
 
+class Gnss:
+    """A GNSS epoch (revision 5): `status` ("no_fix", "single", "float" or "fixed"),
+    `satellites` used, `position` (east, north, up of the antenna from the datum, metres; NaN
+    without a fix) and its `covariance` (3x3, m^2), the same fix as `latitude`, `longitude`
+    (degrees) and `altitude` (ellipsoidal, m), and `hdop` (NaN under four satellites).
+    Nothing is checked for the class: refuse a fix whose position is not finite or whose
+    covariance is not symmetric positive definite."""
+
+    __slots__ = (
+        "stamp_ns",
+        "sensor",
+        "status",
+        "satellites",
+        "position",
+        "covariance",
+        "latitude",
+        "longitude",
+        "altitude",
+        "hdop",
+    )
+
+    def __repr__(self):
+        return f"Gnss(stamp_ns={self.stamp_ns}, status={self.status})"
+
+
 def load_class(module, name):
     mod = importlib.import_module(module)
     try:
@@ -253,6 +278,15 @@ def rgbd(obj, stamp_ns, sensor, width, height, rgb, depth, intrinsics):
     m.rgb = np.frombuffer(rgb, dtype=np.uint8).reshape(height, width, 3)
     m.depth = np.frombuffer(depth, dtype="<f4").reshape(height, width)
     return _call(obj, "on_rgbd", m)
+
+
+def gnss(obj, stamp_ns, sensor, status, satellites, position, covariance, geodetic, hdop):
+    m = Gnss()
+    m.stamp_ns, m.sensor, m.status, m.satellites, m.hdop = stamp_ns, sensor, status, satellites, hdop
+    m.position = np.array(position, dtype=np.float64)
+    m.covariance = np.array(covariance, dtype=np.float64).reshape(3, 3)
+    m.latitude, m.longitude, m.altitude = geodetic
+    return _call(obj, "on_gnss", m)
 
 
 def _relative_pose(value):

@@ -42,8 +42,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, MapStart, Mode, OccupancyGrid, PluginError, PointCloud, Pose,
-    PoseStatus, Requirements, RgbdFrame, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
+    Event, EventKind, Gnss, Imu, LaserScan, MapStart, Mode, OccupancyGrid, PluginError, PointCloud,
+    Pose, PoseStatus, Requirements, RgbdFrame, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
     WheelOdometry, export_plugin,
 };
 use pyo3::prelude::*;
@@ -491,6 +491,22 @@ impl SlamSystem for PythonPlugin {
                 imu.accel_mps2,
                 imu.gyro_rps,
                 orientation,
+            )
+                .into_pyobject(py)
+        })
+    }
+
+    fn on_gnss(&mut self, g: &Gnss) -> Result<Option<Pose>, PluginError> {
+        self.call("gnss", |py, _| {
+            (
+                g.stamp_ns,
+                "gnss",
+                g.status.name(),
+                g.satellites,
+                g.position_enu_m,
+                g.covariance_enu_m2,
+                (g.latitude_deg, g.longitude_deg, g.altitude_m),
+                g.hdop,
             )
                 .into_pyobject(py)
         })

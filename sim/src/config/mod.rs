@@ -181,6 +181,15 @@ impl SimConfig {
         s.gnss.check()?;
         positive("sensors.ground_truth.rate_hz", s.ground_truth.rate_hz)?;
         positive("sensors.imu.rate_hz", s.imu.rate_hz)?;
+        non_negative(
+            "sensors.imu.orientation_roll_pitch_sigma_rad",
+            s.imu.orientation_roll_pitch_sigma_rad,
+        )?;
+        non_negative(
+            "sensors.imu.orientation_yaw_sigma_rad",
+            s.imu.orientation_yaw_sigma_rad,
+        )?;
+        positive("sensors.imu.orientation_tau_s", s.imu.orientation_tau_s)?;
         positive("sensors.wheel_odometry.rate_hz", s.wheel_odometry.rate_hz)?;
         positive("sensors.lidar.rate_hz", s.lidar.rate_hz)?;
         for (k, a) in s.lidar.beam_divergence_mrad.iter().enumerate() {

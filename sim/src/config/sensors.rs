@@ -68,6 +68,16 @@ pub struct ImuConfig {
     /// LCAS/bacchus_lcas, branch `liosam`: `initialOrientationAsReference` false, noise 0);
     /// LIO-SAM reads it.
     pub reports_orientation: bool,
+    /// The reported orientation's error (issue 47: the absolute heading GNSS fusion needs),
+    /// one first-order Gauss–Markov process per axis: its σ about roll and pitch and about
+    /// yaw, rad, and its correlation time, s. 0 (the default): the true orientation, as the
+    /// paper's Gazebo IMU gives it. An AHRS (Xsens MTi-30, user manual MT0605P §4.3): roll
+    /// and pitch 0.5° RMS dynamic (0.0087 rad), yaw 1.0° RMS where the magnetic field is
+    /// homogeneous and mapped (0.0175 rad); the same manual has the estimates "degrade
+    /// slowly (typically a degree every minute)" on the gyros alone, whence τ = 60 s.
+    pub orientation_roll_pitch_sigma_rad: f64,
+    pub orientation_yaw_sigma_rad: f64,
+    pub orientation_tau_s: f64,
 }
 
 impl Default for ImuConfig {
@@ -85,6 +95,9 @@ impl Default for ImuConfig {
             accel_bias_initial: 0.02,
             gyro_bias_initial: 1.0e-3,
             reports_orientation: false,
+            orientation_roll_pitch_sigma_rad: 0.0,
+            orientation_yaw_sigma_rad: 0.0,
+            orientation_tau_s: 60.0,
         }
     }
 }

@@ -132,6 +132,16 @@ pub struct GnssConfig {
     /// et al., Sensors 20(21) 6050, 2020, find stationary single-frequency errors
     /// Ornstein–Uhlenbeck rather than white).
     pub consumer: ErrorModel,
+    /// The world origin on the Earth: WGS-84 latitude and longitude (degrees) and
+    /// ellipsoidal height (m); the world frame is east-north-up there. The default is the
+    /// paper's Riseholme vineyard, as LCAS/bacchus_lcas (branch `gnss`) sets its datum
+    /// (`mel_amcl/config/datums/riseholme.yaml`: 53.268642038 N, 0.524509505881 W; that
+    /// file gives no height: 0).
+    pub datum: [f64; 3],
+    /// Every satellite above the mask counts as in view, whatever hides it: a receiver
+    /// under an open sky along the whole route (the study's "RTK always fixed" cell), not a
+    /// place in this world.
+    pub open_sky: bool,
 }
 
 impl Default for GnssConfig {
@@ -146,6 +156,8 @@ impl Default for GnssConfig {
             rtk_min_satellites: 5,
             rtk_max_pdop: 6.0,
             rtk_fix_after_s: 10.0,
+            datum: [53.268642038, -0.524509505881, 0.0],
+            open_sky: false,
             fixed: ErrorModel {
                 sigma_h_m: 0.0085,
                 sigma_v_m: 0.015,
@@ -209,6 +221,17 @@ impl GnssConfig {
         }
         if !(0.0..90.0).contains(&self.elevation_mask_deg) {
             return Err("sensors.gnss.elevation_mask_deg: from 0 to 90".into());
+        }
+        let [lat, lon, h] = self.datum;
+        if !((-90.0..=90.0).contains(&lat)
+            && (-180.0..=180.0).contains(&lon)
+            && h.is_finite()
+            && h.abs() < 1e5)
+        {
+            return Err(
+                "sensors.gnss.datum: [latitude from -90 to 90, longitude from -180 to 180, height in m]"
+                    .into(),
+            );
         }
         if self.satellites == 0 || self.satellites > 200 {
             return Err("sensors.gnss.satellites: from 1 to 200".into());
@@ -325,6 +348,11 @@ pub struct GnssFix {
     /// Dilutions of precision of the visible satellites (`None` under 4).
     pub hdop: Option<f64>,
     pub vdop: Option<f64>,
+    /// The same position as WGS-84 latitude, longitude (degrees) and ellipsoidal height
+    /// (m), from the configuration's datum; `None` without a fix.
+    pub geodetic: Option<[f64; 3]>,
+    /// From the epoch to the fix being available (the receiver's latency), ns.
+    pub latency_ns: i64,
 }
 
 /// The receiver: its sky, its fix state and its errors.
@@ -452,6 +480,8 @@ impl GnssReceiver {
             satellites: seen.len(),
             hdop,
             vdop,
+            geodetic: position_enu_m.map(|p| geodetic_from_enu(self.cfg.datum, &p)),
+            latency_ns: 0,
         }
     }
 }
@@ -470,6 +500,103 @@ impl GnssReceiver {
         let antenna = world_from_antenna.translation.vector;
         let fix = self.measure(t_ns, &antenna, |d| sky_visible(scene.caster, &antenna, d));
         (fix, antenna)
+    }
+}
+
+/// WGS-84's semi-major axis (m) and first eccentricity squared (NIMA TR8350.2).
+const WGS84_A: f64 = 6_378_137.0;
+const WGS84_E2: f64 = 6.694_379_990_14e-3;
+
+/// Earth-centred, Earth-fixed coordinates of a geodetic point (degrees, degrees, m).
+fn ecef_from_geodetic([lat, lon, h]: [f64; 3]) -> Vector3<f64> {
+    let (phi, lambda) = (lat.to_radians(), lon.to_radians());
+    let n = WGS84_A / (1.0 - WGS84_E2 * phi.sin().powi(2)).sqrt();
+    Vector3::new(
+        (n + h) * phi.cos() * lambda.cos(),
+        (n + h) * phi.cos() * lambda.sin(),
+        (n * (1.0 - WGS84_E2) + h) * phi.sin(),
+    )
+}
+
+/// The rotation from east-north-up at `(lat, lon)` to ECEF: its columns are east, north, up.
+fn ecef_r_enu(lat: f64, lon: f64) -> nalgebra::Matrix3<f64> {
+    let (sp, cp) = lat.to_radians().sin_cos();
+    let (sl, cl) = lon.to_radians().sin_cos();
+    nalgebra::Matrix3::new(-sl, -sp * cl, cp * cl, cl, -sp * sl, cp * sl, 0.0, cp, sp)
+}
+
+/// The geodetic point (latitude, longitude in degrees, ellipsoidal height in m) of
+/// `enu_m`, east-north-up from `datum`: through ECEF, and back by Bowring's iteration
+/// (five rounds: converged to far under a millimetre near the surface).
+pub fn geodetic_from_enu(datum: [f64; 3], enu_m: &Vector3<f64>) -> [f64; 3] {
+    let ecef = ecef_from_geodetic(datum) + ecef_r_enu(datum[0], datum[1]) * enu_m;
+    let p = ecef.x.hypot(ecef.y);
+    let lon = ecef.y.atan2(ecef.x);
+    let mut lat = ecef.z.atan2(p * (1.0 - WGS84_E2));
+    let mut h = 0.0;
+    for _ in 0..5 {
+        let n = WGS84_A / (1.0 - WGS84_E2 * lat.sin().powi(2)).sqrt();
+        h = p / lat.cos() - n;
+        lat = ecef.z.atan2(p * (1.0 - WGS84_E2 * n / (n + h)));
+    }
+    [lat.to_degrees(), lon.to_degrees(), h]
+}
+
+/// East-north-up from `datum` of a geodetic point: the inverse of [`geodetic_from_enu`].
+pub fn enu_from_geodetic(datum: [f64; 3], point: [f64; 3]) -> Vector3<f64> {
+    ecef_r_enu(datum[0], datum[1]).transpose()
+        * (ecef_from_geodetic(point) - ecef_from_geodetic(datum))
+}
+
+/// The receiver as a sensor of the stream: an epoch every `1 / rate_hz` s, measured with
+/// the antenna where the mount puts it on the robot, available `latency_s` later.
+#[derive(Debug)]
+pub struct GnssSensor {
+    receiver: GnssReceiver,
+    base_from_antenna: Isometry3<f64>,
+    rate_hz: f64,
+    latency_ns: i64,
+    open_sky: bool,
+    k: u64,
+    end_ns: i64,
+}
+
+impl GnssSensor {
+    pub fn new(cfg: &GnssConfig, end_ns: i64, rng: SimRng) -> Self {
+        let [x, y, z] = cfg.mount_xyz_m;
+        Self {
+            receiver: GnssReceiver::new(cfg, rng),
+            base_from_antenna: Isometry3::translation(x, y, z),
+            rate_hz: cfg.rate_hz,
+            latency_ns: (cfg.latency_s * 1e9).round() as i64,
+            open_sky: cfg.open_sky,
+            k: 0,
+            end_ns,
+        }
+    }
+}
+
+impl super::Sensor for GnssSensor {
+    fn next_ready_ns(&self) -> Option<i64> {
+        let t = super::sample_time_ns(self.k, self.rate_hz);
+        (t <= self.end_ns).then_some(t + self.latency_ns)
+    }
+
+    fn emit(&mut self, scene: &Scene<'_>) -> super::Message {
+        let t = super::sample_time_ns(self.k, self.rate_hz);
+        self.k += 1;
+        let mut fix = if self.open_sky {
+            let antenna = (scene.trajectory.state(t).world_from_base * self.base_from_antenna)
+                .translation
+                .vector;
+            self.receiver.measure(t, &antenna, |_| true)
+        } else {
+            self.receiver
+                .measure_scene(scene, t, &self.base_from_antenna)
+                .0
+        };
+        fix.latency_ns = self.latency_ns;
+        super::Message::Gnss(fix)
     }
 }
 
@@ -662,6 +789,28 @@ mod tests {
         assert!(dops(&good[..3]).is_none(), "three satellites");
         let same = [good[0]; 4];
         assert!(dops(&same).is_none(), "one direction four times");
+    }
+
+    /// The datum conversion against a known point: one degree of latitude north of the
+    /// Riseholme datum is 111.25 km (the WGS-84 meridian arc there, 111 254 m ± 10), and
+    /// every point comes back from latitude, longitude and height to within 1 µm.
+    #[test]
+    fn east_north_up_and_wgs84_convert_both_ways() {
+        let datum = GnssConfig::default().datum;
+        let north = enu_from_geodetic(datum, [datum[0] + 1.0, datum[1], datum[2]]);
+        assert!((north.y - 111_254.0).abs() < 10.0, "{north}");
+        assert!(north.x.abs() < 1e-6, "{north}");
+        for p in [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(35.0, -120.0, 1.7),
+            Vector3::new(-2500.0, 4000.0, -30.0),
+        ] {
+            let g = geodetic_from_enu(datum, &p);
+            let back = enu_from_geodetic(datum, g);
+            assert!((back - p).norm() < 1e-6, "{p} -> {g:?} -> {back}");
+        }
+        let up = geodetic_from_enu(datum, &Vector3::new(0.0, 0.0, 10.0));
+        assert!((up[2] - 10.0).abs() < 1e-6 && (up[0] - datum[0]).abs() < 1e-9);
     }
 
     #[test]

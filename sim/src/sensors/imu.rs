@@ -20,6 +20,10 @@ pub struct ImuSensor {
     rng: SimRng,
     accel_bias: Vector3<f64>,
     gyro_bias: Vector3<f64>,
+    /// The reported orientation's error (roll, pitch, yaw; unit-variance Gauss–Markov
+    /// states) and its own generator, drawn from the IMU's only where it has an error, so
+    /// that an IMU without one streams what it did before.
+    orientation_error: Option<(Vector3<f64>, SimRng)>,
 }
 
 fn gaussian3(rng: &mut SimRng, sigma: f64) -> Vector3<f64> {
@@ -39,7 +43,15 @@ impl ImuSensor {
         } else {
             (Vector3::zeros(), Vector3::zeros())
         };
+        let orientation_error = (cfg.reports_orientation
+            && (cfg.orientation_roll_pitch_sigma_rad > 0.0 || cfg.orientation_yaw_sigma_rad > 0.0))
+            .then(|| {
+                let mut own =
+                    <SimRng as rand::SeedableRng>::seed_from_u64(rand::Rng::random(&mut rng));
+                (gaussian3(&mut own, 1.0), own)
+            });
         Self {
+            orientation_error,
             cfg: cfg.clone(),
             base_from_imu: cfg.mount.base_from_sensor(),
             k: 0,
@@ -89,10 +101,28 @@ impl Sensor for ImuSensor {
                 gaussian3(&mut self.rng, self.cfg.accel_bias_random_walk * dt.sqrt());
             self.gyro_bias += gaussian3(&mut self.rng, self.cfg.gyro_bias_random_walk * dt.sqrt());
         }
-        let orientation = self
+        let mut orientation = self
             .cfg
             .reports_orientation
             .then(|| scene.trajectory.pose(stamp_ns).rotation * self.base_from_imu.rotation);
+        if let (Some(q), Some((state, rng))) =
+            (orientation.as_mut(), self.orientation_error.as_mut())
+        {
+            // x_k = φ x_{k-1} + √(1-φ²) w_k per axis, the error applied in the world frame
+            // (a heading error turns about the vertical).
+            let phi = (-1.0 / (self.cfg.rate_hz * self.cfg.orientation_tau_s)).exp();
+            *state = *state * phi + gaussian3(rng, (1.0 - phi * phi).sqrt());
+            let (rp, yaw) = (
+                self.cfg.orientation_roll_pitch_sigma_rad,
+                self.cfg.orientation_yaw_sigma_rad,
+            );
+            let error = nalgebra::UnitQuaternion::from_euler_angles(
+                rp * state.x,
+                rp * state.y,
+                yaw * state.z,
+            );
+            *q = error * *q;
+        }
         Message::Imu(ImuSample {
             stamp_ns,
             accel_mps2: accel,

@@ -103,6 +103,8 @@ pub enum Message {
     Lidar(LidarScan),
     Scan2d(LaserScan),
     Rgbd(RgbdFrame),
+    /// A GNSS epoch, stamped at the epoch, available `latency_ns` later.
+    Gnss(super::gnss::GnssFix),
 }
 
 impl Message {
@@ -115,6 +117,7 @@ impl Message {
             Message::Lidar(m) => m.stamp_ns,
             Message::Scan2d(m) => m.stamp_ns,
             Message::Rgbd(m) => m.stamp_ns,
+            Message::Gnss(m) => m.stamp_ns,
         }
     }
 
@@ -128,6 +131,7 @@ impl Message {
             Message::Lidar(m) => &mut m.stamp_ns,
             Message::Scan2d(m) => &mut m.stamp_ns,
             Message::Rgbd(m) => &mut m.stamp_ns,
+            Message::Gnss(m) => &mut m.stamp_ns,
         };
         *stamp += ns;
     }
@@ -141,6 +145,7 @@ impl Message {
             Message::Lidar(_) => "lidar",
             Message::Scan2d(m) => m.side.name(),
             Message::Rgbd(_) => "rgbd",
+            Message::Gnss(_) => "gnss",
         }
     }
 }

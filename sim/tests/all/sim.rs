@@ -511,6 +511,112 @@ fn stream_is_time_ordered_with_the_configured_rates() {
     }
 }
 
+/// A world with an RTK receiver streams its epochs at the configured rate, each delivered
+/// its latency after its stamp and in order of delivery among the other sensors; a fix
+/// lies within five of its reported σ of the antenna's true position (the mast over the
+/// base); a world without a receiver streams none; the same seed gives the same fixes.
+#[test]
+fn a_gnss_receiver_streams_its_fixes_late_by_its_latency() {
+    let mut cfg = SimConfig::default();
+    cfg.sensors.gnss.profile = sim::config::GnssProfile::Rtk;
+    cfg.validate().expect("valid");
+    let sim = Simulation::new(&cfg, "s0", 3).expect("builds");
+    let fixes = |sim: &Simulation| -> Vec<sim::sensors::gnss::GnssFix> {
+        let mut last_ready = i64::MIN;
+        sim.stream(only("gt,imu,gnss"))
+            .take_while(|m| m.stamp_ns() < 20_000_000_000)
+            .filter_map(|m| {
+                let ready = match &m {
+                    Message::Gnss(g) => g.stamp_ns + g.latency_ns,
+                    other => other.stamp_ns(),
+                };
+                assert!(ready >= last_ready, "{} out of order", m.sensor());
+                last_ready = ready;
+                match m {
+                    Message::Gnss(g) => Some(g),
+                    _ => None,
+                }
+            })
+            .collect()
+    };
+    let got = fixes(&sim);
+    assert!(
+        (99..=101).contains(&got.len()),
+        "{} epochs in 20 s at 5 Hz",
+        got.len()
+    );
+    assert_eq!(got[1].stamp_ns - got[0].stamp_ns, 200_000_000);
+    assert!(got.iter().all(|g| g.latency_ns == 50_000_000));
+    let mut with_fix = 0;
+    for g in &got {
+        let Some(p) = g.position_enu_m else { continue };
+        with_fix += 1;
+        let truth = (sim.trajectory.pose(g.stamp_ns) * Isometry3::translation(0.0, 0.0, 1.7))
+            .translation
+            .vector;
+        let d = p - truth;
+        let (sh, sv) = (g.variance_enu_m2[0].sqrt(), g.variance_enu_m2[2].sqrt());
+        assert!(
+            d.x.abs() < 5.0 * sh && d.y.abs() < 5.0 * sh && d.z.abs() < 5.0 * sv,
+            "{:?} off by {d} with sigma {sh}, {sv}",
+            g.status
+        );
+        let [lat, lon, _] = g.geodetic.expect("a fix has its WGS-84 position");
+        assert!((lat - 53.2686).abs() < 0.01 && (lon + 0.5245).abs() < 0.01);
+    }
+    assert!(with_fix > 0, "no fix in 20 s");
+    assert_eq!(fixes(&Simulation::new(&cfg, "s0", 3).expect("builds")), got);
+    let none = Simulation::new(&SimConfig::default(), "s0", 3).expect("builds");
+    assert!(fixes(&none).is_empty());
+}
+
+/// The reported orientation's error is the configured Gauss–Markov process: zero error
+/// unless asked, and with a short correlation time an RMS about its σ per axis (yaw
+/// measured about the vertical, against the true orientation), the same for the same seed.
+#[test]
+fn the_imu_orientation_carries_its_configured_error() {
+    let mut cfg = SimConfig::default();
+    cfg.sensors.imu.reports_orientation = true;
+    let errors = |cfg: &SimConfig| -> Vec<(f64, f64)> {
+        let sim = Simulation::new(cfg, "s0", 5).expect("builds");
+        let base_r_imu = cfg.sensors.imu.mount.base_from_sensor().rotation;
+        sim.stream(only("imu"))
+            .take_while(|m| m.stamp_ns() < 10_000_000_000)
+            .filter_map(|m| match m {
+                Message::Imu(ImuSample {
+                    stamp_ns,
+                    orientation: Some(q),
+                    ..
+                }) => {
+                    let truth = sim.trajectory.pose(stamp_ns).rotation * base_r_imu;
+                    let (roll, pitch, yaw) = (q * truth.inverse()).euler_angles();
+                    Some((roll.hypot(pitch), yaw))
+                }
+                _ => None,
+            })
+            .collect()
+    };
+    assert!(
+        errors(&cfg)
+            .iter()
+            .all(|&(rp, y)| rp < 1e-9 && y.abs() < 1e-9)
+    );
+    cfg.sensors.imu.orientation_roll_pitch_sigma_rad = 0.01;
+    cfg.sensors.imu.orientation_yaw_sigma_rad = 0.02;
+    cfg.sensors.imu.orientation_tau_s = 0.1;
+    let noisy = errors(&cfg);
+    // 2000 samples over 100 correlation times.
+    let rms = |f: &dyn Fn(&(f64, f64)) -> f64| {
+        (noisy.iter().map(|e| f(e).powi(2)).sum::<f64>() / noisy.len() as f64).sqrt()
+    };
+    let yaw = rms(&|e| e.1);
+    // Roll and pitch together: √2 σ.
+    let tilt = rms(&|e| e.0);
+    assert!((0.015..0.026).contains(&yaw), "yaw error RMS {yaw}");
+    assert!((0.010..0.0185).contains(&tilt), "tilt error RMS {tilt}");
+    assert_eq!(errors(&cfg), noisy);
+}
+
 /// At rest the accelerometer reads gravity up and the gyro zero.
 #[test]
 fn resting_imu_reads_gravity() {
