@@ -20,6 +20,8 @@ enum Command {
     Record(vinebench::cmd::record::RecordArgs),
     /// Export ground truth (TUM) and lidar sweeps (KITTI) for other tools.
     Export(vinebench::cmd::export::ExportArgs),
+    /// Map the GNSS receiver's fix quality along every lane of the block, per growth stage.
+    GnssMap(vinebench::cmd::gnss_map::GnssMapArgs),
     /// Evaluate an estimated trajectory against ground truth (APE / RPE, as evo does).
     Eval(vinebench::cmd::eval::EvalArgs),
     /// Run one plugin on one scenario and score it.
@@ -52,6 +54,7 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(args) => vinebench::cmd::simulate::run(&args),
         Command::Record(args) => vinebench::cmd::record::run(&args),
         Command::Export(args) => vinebench::cmd::export::run(&args),
+        Command::GnssMap(args) => vinebench::cmd::gnss_map::run(&args),
         Command::Eval(args) => vinebench::cmd::eval::run(&args),
         Command::Run(args) => vinebench::cmd::run::run(&args),
         Command::Localize(args) => vinebench::cmd::localize::run(&args),

@@ -33,6 +33,7 @@ pub mod bench;
 pub mod check_plugin;
 pub mod eval;
 pub mod export;
+pub mod gnss_map;
 pub mod localize;
 pub mod plugins;
 pub mod progress;

@@ -20,7 +20,7 @@ pub struct RecordArgs {
     /// The MCAP file to write (replaced if it exists; written under a temporary name first).
     #[arg(short = 'o', long = "output", value_name = "FILE.mcap")]
     pub output: PathBuf,
-    /// Sensors to record: any of gt,imu,odom,lidar,scan2d,rgbd, or all. The camera (rgbd)
+    /// Sensors to record: any of gt,imu,odom,lidar,scan2d,rgbd,gnss, or all. The camera (rgbd)
     /// is left out by default: it adds about 64 MB per simulated second.
     #[arg(long, default_value = "gt,imu,odom,lidar,scan2d")]
     pub sensors: String,

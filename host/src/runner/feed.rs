@@ -475,11 +475,12 @@ impl Feed {
 mod tests {
     use super::*;
 
-    /// Every kind of message of a short simulation with all sensors survives the wire bit
-    /// for bit.
+    /// Every kind of message of a short simulation with all sensors (a GNSS receiver too)
+    /// survives the wire bit for bit.
     #[test]
     fn every_message_round_trips_exactly() {
-        let config = sim::SimConfig::default();
+        let mut config = sim::SimConfig::default();
+        config.sensors.gnss.profile = sim::config::GnssProfile::Rtk;
         let timing = ScanTiming::new(&config);
         let sim = Simulation::new(&config, "s1", 7).expect("s1");
         let mut kinds = std::collections::BTreeSet::new();
@@ -495,7 +496,7 @@ mod tests {
             // Bitwise, not just ==: -0.0 and NaN payloads too.
             assert_eq!(Frames::encode(&back, &timing).to_bytes(), bytes);
         }
-        assert_eq!(kinds.len(), 7, "every sensor seen: {kinds:?}");
+        assert_eq!(kinds.len(), 8, "every sensor seen: {kinds:?}");
     }
 
     #[test]
