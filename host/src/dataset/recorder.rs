@@ -44,7 +44,14 @@ impl Recorder {
     ) -> Result<Self, DatasetError> {
         let mut file = McapFile::create(path)?;
         let mut channels = BTreeMap::new();
-        for topic in Topic::ALL.into_iter().filter(|t| t.in_set(&sensors)) {
+        // GNSS channels only where the world has a receiver.
+        let has = |t: &Topic| {
+            !matches!(t, Topic::GnssFix | Topic::GnssEnu) || !config.sensors.gnss.is_absent()
+        };
+        for topic in Topic::ALL
+            .into_iter()
+            .filter(|t| t.in_set(&sensors) && has(t))
+        {
             let id = file.channel(topic.name(), topic.schema(), topic == Topic::TfStatic)?;
             channels.insert(topic, id);
         }

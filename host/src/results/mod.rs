@@ -29,7 +29,7 @@ pub use folder::{
 };
 pub use maps::{read_grid, read_ply, write_grid, write_ply};
 pub use run::{
-    ApeSeries, FramePair, Frames, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency,
+    ApeSeries, FramePair, Frames, GnssMetrics, JoinCounts, Joins, JudgedBy, JudgedEvent, Latency,
     LocalizationMetrics, Metrics, PairKind, RunFolder, RunOutcome, RunStatus, Timing, Transform,
     write_json,
 };
@@ -47,6 +47,9 @@ pub mod files {
     pub const EVENTS: &str = "events.json";
     pub const TIMING: &str = "timing.json";
     pub const METRICS: &str = "metrics.json";
+    /// The GNSS epochs the plugin was fed, `stamp_ns,status` (a plugin that takes GNSS, in
+    /// a world with a receiver).
+    pub const GNSS: &str = "gnss.csv";
     /// The final map's wrong joins and revisits (`results::Joins`).
     pub const JOINS: &str = "joins.json";
     /// The aligned estimate and its translation error per associated pose.

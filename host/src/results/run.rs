@@ -82,6 +82,28 @@ pub struct Metrics {
     /// A localisation run's judgement (`vinebench localize`); absent for a mapping run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub localization: Option<LocalizationMetrics>,
+    /// What GNSS gave the run and its error while it gave nothing good; absent when the
+    /// plugin was fed no fixes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<GnssMetrics>,
+}
+
+/// A run's GNSS outages (issue 47): an outage is a stretch without the best status the
+/// receiver reached in the run (RTK fixed for an RTK receiver that fixed, a single-point
+/// fix for a consumer one), from the last good epoch to the next (or the run's ends).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GnssMetrics {
+    /// Epochs fed, and the fraction at the best status.
+    pub epochs: u64,
+    pub best_status: String,
+    pub fraction_best: f64,
+    /// The longest outage: its start and length, s.
+    pub longest_outage_start_s: f64,
+    pub longest_outage_s: f64,
+    /// The largest APE (aligned as `ape`) of a pose stamped within the longest outage, m;
+    /// absent when no pose falls in it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_error_in_outage_m: Option<f64>,
 }
 
 /// A similarity transform as `metrics.json` holds it: `p' = s R p + t`.

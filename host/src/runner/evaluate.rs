@@ -79,6 +79,7 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         drift,
         joins: Some(joins.counts()),
         localization: localization(run, &gt, &options)?,
+        gnss: gnss(run, &final_.pairs.stamps, &final_.errors)?,
     };
     run.write_metrics(&metrics)?;
     run.write_ape(&ApeSeries {
@@ -99,6 +100,67 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         &final_.transform,
         &judged,
     )
+}
+
+/// The run's GNSS outages ([`crate::results::GnssMetrics`]) from its `gnss.csv`, with the
+/// APE of the poses at `stamps_s` (`errors_m`); `None` without the file.
+fn gnss(
+    run: &RunFolder,
+    stamps_s: &[f64],
+    errors_m: &[f64],
+) -> anyhow::Result<Option<crate::results::GnssMetrics>> {
+    let path = run.path(files::GNSS);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(e).with_context(|| path.display().to_string()),
+    };
+    const ORDER: [&str; 4] = ["none", "single", "float", "fixed"];
+    let mut epochs = Vec::new();
+    for (k, line) in text.lines().enumerate().skip(1) {
+        let parsed = line
+            .split_once(',')
+            .and_then(|(t, s)| Some((t.parse::<i64>().ok()?, ORDER.iter().position(|o| *o == s)?)));
+        let Some(epoch) = parsed else {
+            anyhow::bail!("{} line {}: not stamp_ns,status", path.display(), k + 1);
+        };
+        epochs.push(epoch);
+    }
+    let Some(best) = epochs.iter().map(|e| e.1).max() else {
+        return Ok(None);
+    };
+    let (start, end) = match (stamps_s.first(), stamps_s.last()) {
+        (Some(&a), Some(&b)) => (a, b),
+        _ => return Ok(None),
+    };
+    // Outages between good epochs, and before the first and after the last.
+    let good: Vec<f64> = epochs
+        .iter()
+        .filter(|e| e.1 == best)
+        .map(|e| e.0 as f64 * 1e-9)
+        .collect();
+    let mut bounds = vec![start];
+    bounds.extend(&good);
+    bounds.push(end.max(start));
+    let (from, to) = bounds
+        .windows(2)
+        .map(|w| (w[0], w[1]))
+        .max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))
+        .unwrap_or((start, start));
+    let worst = stamps_s
+        .iter()
+        .zip(errors_m)
+        .filter(|(t, _)| (from..=to).contains(*t))
+        .map(|(_, e)| *e)
+        .max_by(f64::total_cmp);
+    Ok(Some(crate::results::GnssMetrics {
+        epochs: epochs.len() as u64,
+        best_status: ORDER[best].to_owned(),
+        fraction_best: good.len() as f64 / epochs.len() as f64,
+        longest_outage_start_s: from,
+        longest_outage_s: to - from,
+        worst_error_in_outage_m: worst,
+    }))
 }
 
 /// A localisation run's judgement (`runner::localize`): its online poses and their statuses

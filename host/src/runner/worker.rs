@@ -165,6 +165,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         .map(super::queue::read_drops)
         .transpose()?;
     let mut queues = super::queue::Queues::new(job.queue_size.clone(), given);
+    let mut gnss_epochs: Vec<(i64, sim::sensors::gnss::FixStatus)> = Vec::new();
     let cost = std::thread::scope(|scope| -> anyhow::Result<SimulationCost> {
         let (tx, rx) = sync_channel(AHEAD);
         let producer = scope.spawn(move || {
@@ -210,6 +211,9 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
                 },
             };
             let stamp = message.stamp_ns();
+            if let Message::Gnss(g) = &message {
+                gnss_epochs.push((g.stamp_ns, g.status));
+            }
             let call = Instant::now();
             let returned = deliver(&mut instance, &message, &mut points).map_err(|e| {
                 anyhow!(
@@ -262,6 +266,14 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
         );
     }
     write_outputs(&job.out_dir, &groundtruth, &online, &output)?;
+    if !gnss_epochs.is_empty() {
+        let mut text = String::from("stamp_ns,status\n");
+        for (t, status) in &gnss_epochs {
+            text += &format!("{t},{}\n", format!("{status:?}").to_lowercase());
+        }
+        std::fs::write(job.out_dir.join(files::GNSS), text)
+            .with_context(|| job.out_dir.join(files::GNSS).display().to_string())?;
+    }
     if let Some(saved) = &output.saved_map {
         crate::results::map_file::write_map(
             &job.out_dir.join(files::SAVED_MAP),

@@ -22,6 +22,7 @@ const SEED: u64 = 7;
 /// What `vinebench record` records by default: every sensor but the camera.
 const DEFAULT_SENSORS: SensorSet = SensorSet {
     rgbd: false,
+    gnss: false,
     ..SensorSet::ALL
 };
 /// The camera's recordings are short: 31 frames at 30 Hz (both ends), about 70 MB.
@@ -33,6 +34,7 @@ const CAMERA_ONLY: SensorSet = SensorSet {
     lidar: false,
     scan2d: false,
     rgbd: true,
+    gnss: false,
 };
 const CAMERA_TOPICS: [&str; 3] = [
     "/camera/color/image_raw",
