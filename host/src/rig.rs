@@ -105,6 +105,12 @@ pub fn rig(cfg: &SimConfig) -> Rig {
                 ("accel_bias_random_walk", s.imu.accel_bias_random_walk),
                 ("gyro_noise_density", s.imu.gyro_noise_density),
                 ("gyro_bias_random_walk", s.imu.gyro_bias_random_walk),
+                // The reported orientation's error (0 where it reports none or exactly).
+                (
+                    "orientation_roll_pitch_sigma_rad",
+                    s.imu.orientation_roll_pitch_sigma_rad,
+                ),
+                ("orientation_yaw_sigma_rad", s.imu.orientation_yaw_sigma_rad),
             ],
         ),
         intrinsics: figures(&[(
