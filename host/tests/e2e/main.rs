@@ -9,6 +9,7 @@ mod bench;
 mod cli;
 mod conformance;
 mod dataset;
+mod gnss;
 mod joins;
 mod lio_sam;
 mod localize;
