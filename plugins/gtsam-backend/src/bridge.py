@@ -106,6 +106,8 @@ class Graph:
             return self._error(r.u64())
         if op == ord("v"):
             return self._value(r.u8(), r.u64())
+        if op == ord("c"):
+            return self._marginal(r.u8(), r.u64())
         raise ValueError("unknown request %r" % chr(op))
 
     # -- requests ----------------------------------------------------------------------
@@ -156,6 +158,13 @@ class Graph:
                 kernel = m.Huber.Create(k) if robust == 1 else m.Cauchy.Create(k)
                 model = gtsam.noiseModel.Robust.Create(kernel, noise)
                 factor = gtsam.BetweenFactorPose3(_key(POSE, a), _key(POSE, b), pose, model)
+        elif kind == ord("P"):
+            # A position-only prior on a pose's translation: GPSFactor's error is
+            # pose.translation() - measured, whitened by the diagonal sigmas.
+            key = r.u64()
+            position, sigmas = np.array(r.f64s(3)), r.f64s(3)
+            factor = gtsam.GPSFactor(_key(POSE, key), position, _diag(sigmas))
+            plain = factor
         elif kind == ord("I"):
             factor = self._imu(r)
             plain = factor
@@ -292,6 +301,16 @@ class Graph:
         if kind == VEL:
             return np.asarray(self.isam.calculateEstimateVector(key), dtype="<f8").tobytes()
         return self.isam.calculateEstimateConstantBias(key).vector().astype("<f8").tobytes()
+
+    def _marginal(self, kind, index):
+        """ISAM2's marginal covariance of one pose (marginalCovariance: from its Bayes tree
+        at the linearisation point), Pose3's tangent order, 36 f64 row-major."""
+        if kind != POSE:
+            raise ValueError("marginal covariance of a pose only, not %r" % chr(kind))
+        cov = np.asarray(self.isam.marginalCovariance(_key(kind, index)), dtype="<f8")
+        if cov.shape != (6, 6):
+            raise ValueError("marginal covariance of shape %r" % (cov.shape,))
+        return np.ascontiguousarray(cov).tobytes()
 
     def _take_result(self, ids, result):
         for fid, index in zip(ids, result.getNewFactorsIndices()):

@@ -28,6 +28,9 @@ pub struct Config {
     pub features: FeatureConfig,
     pub mapping: MappingConfig,
     pub loop_closure: LoopConfig,
+    /// GNSS fixes as GPS factors in the mapping graph (LIO-SAM's "GPS Settings"), off by
+    /// default.
+    pub gps: GpsConfig,
     /// The factor-graph backend of both graphs, the mapping graph and the IMU odometry's,
     /// with LIO-SAM's iSAM2 settings by default.
     pub backend: BackendConfig,
@@ -60,6 +63,7 @@ impl Default for Config {
             features: FeatureConfig::default(),
             mapping: MappingConfig::default(),
             loop_closure: LoopConfig::default(),
+            gps: GpsConfig::default(),
             // LIO-SAM's ISAM2Params, in both its graphs (`mapOptmization.cpp` and
             // `imuPreintegration.cpp`): relinearizeThreshold 0.1, relinearizeSkip 1 (GTSAM's
             // default, and ours, looks for variables to relinearise every 10th update).
@@ -268,6 +272,52 @@ impl Default for LoopConfig {
             max_fitness: 0.3,
             min_interval_s: 1.0,
             robust_scale: 1.0,
+        }
+    }
+}
+
+/// GPS factors (LIO-SAM's `params.yaml` "GPS Settings", under the same names; the rules
+/// that are fixed in its `addGPSFactor` are in `gnss.rs`). LIO-SAM has no switch: it
+/// subscribes to `gpsTopic` and uses whatever arrives there. Here the fixes are asked for
+/// (the plugin's requirements name the GNSS receiver) only when `enabled`, which stands for
+/// a `gpsTopic` with a publisher; without it nothing of this table is used.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GpsConfig {
+    /// Ask for the GNSS receiver and add GPS factors (ours; LIO-SAM: a publisher on
+    /// `gpsTopic`). It needs an IMU that reports its orientation (the rig's imu
+    /// `reports_orientation = 1`), whose heading aligns the fixes' east-north-up frame with
+    /// the map's, as navsat_transform needs LIO-SAM's 9-axis IMU.
+    pub enabled: bool,
+    /// Start the map at the IMU's reported heading instead of heading 0
+    /// (`useImuHeadingInitialization`: `false` in LIO-SAM's code, `utility.h`, and in its
+    /// ROS 2 `params.yaml`; `true` in its ROS 1 `params.yaml`, "if using GPS data, set to
+    /// true", because there the fixes arrive in navsat_transform's frame). Here the
+    /// alignment is estimated inside (`gnss.rs`), so the fixes need it no more; `false`
+    /// keeps the map frame of runs without GNSS. It too needs the IMU's orientation.
+    #[serde(rename = "useImuHeadingInitialization")]
+    pub use_imu_heading_initialization: bool,
+    /// Use the fixes' altitude (`useGpsElevation`, default `false`: z is the keyframe's
+    /// own, the factor constrains x and y).
+    #[serde(rename = "useGpsElevation")]
+    pub use_gps_elevation: bool,
+    /// A fix whose x or y variance exceeds this is skipped (`gpsCovThreshold`, "m^2").
+    #[serde(rename = "gpsCovThreshold")]
+    pub gps_cov_threshold_m2: f64,
+    /// GPS factors are added only while the last keyframe's marginal position variance
+    /// in x or in y exceeds this (`poseCovThreshold`, "m^2").
+    #[serde(rename = "poseCovThreshold")]
+    pub pose_cov_threshold_m2: f64,
+}
+
+impl Default for GpsConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            use_imu_heading_initialization: false,
+            use_gps_elevation: false,
+            gps_cov_threshold_m2: 2.0,
+            pose_cov_threshold_m2: 25.0,
         }
     }
 }

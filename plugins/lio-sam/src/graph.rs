@@ -1,10 +1,13 @@
 //! The keyframe factor graph (Shan et al. 2020, §III-A and Fig. 1): one pose per keyframe,
 //! joined by lidar-odometry factors (the relative pose between consecutive registered
-//! keyframes), IMU-preintegration factors (with velocity and bias variables), and robust
-//! loop-closure factors; updated incrementally at every keyframe and in full after a loop
-//! closure. Poses are `world_from_imu`, the frame IMU factors live in.
+//! keyframes), IMU-preintegration factors (with velocity and bias variables), GPS factors
+//! (a position prior on a keyframe, §III-D) and robust loop-closure factors; updated
+//! incrementally at every keyframe and in full after a loop closure or a GPS factor.
+//! Poses are `world_from_imu`, the frame IMU factors live in.
 
-use nalgebra::{Isometry3, Vector3, Vector6};
+use std::f64::consts::PI;
+
+use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
 use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, ImuNoise, ImuSample,
     Profiled, Robust, Scope, Value, Var,
@@ -22,15 +25,19 @@ pub struct KeyframeGraph {
     imu_noise: Option<ImuNoise>,
     odometry_sigmas: Vector6<f64>,
     keyframes: usize,
+    /// GPS factors will come: the first keyframe's heading and position are left to them.
+    gps: bool,
 }
 
 impl KeyframeGraph {
-    /// `imu_noise` None builds a lidar-only graph.
+    /// `imu_noise` None builds a lidar-only graph; `gps` a graph that GPS factors will
+    /// place (see `first_pose_sigmas`).
     pub fn new(
         cfg: &BackendConfig,
         imu_noise: Option<ImuNoise>,
         sigma_rad: f64,
         sigma_m: f64,
+        gps: bool,
     ) -> Result<Self, BackendError> {
         Ok(Self {
             backend: Profiled::new(backend::from_config(cfg)?),
@@ -39,6 +46,7 @@ impl KeyframeGraph {
                 sigma_rad, sigma_rad, sigma_rad, sigma_m, sigma_m, sigma_m,
             ),
             keyframes: 0,
+            gps,
         })
     }
 
@@ -51,13 +59,16 @@ impl KeyframeGraph {
     }
 
     /// Adds keyframe `len()` at its registered pose, with the IMU samples since the previous
-    /// keyframe and the state guesses, and updates the graph incrementally.
+    /// keyframe and the state guesses, and a GPS factor on it if one is given (its
+    /// position of the IMU in the world frame and sigmas, m), and updates the graph:
+    /// incrementally, or in full after a GPS factor (LIO-SAM's `aLoopIsClosed`).
     pub fn add_keyframe(
         &mut self,
         registered: Isometry3<f64>,
         velocity_mps: Vector3<f64>,
         bias: ImuBias,
         samples: Vec<ImuSample>,
+        gps: Option<(Vector3<f64>, Vector3<f64>)>,
     ) -> Result<(), BackendError> {
         let k = self.keyframes as u64;
         // The sweep was registered to a map built from the current estimates, so it is in
@@ -106,8 +117,28 @@ impl KeyframeGraph {
                 })?;
             }
         }
+        if let Some((position, sigmas)) = gps {
+            self.backend.add(Factor::Position {
+                key: k,
+                position,
+                sigmas,
+            })?;
+        }
         self.keyframes += 1;
-        self.update(Scope::Incremental)
+        self.update(match gps {
+            Some(_) => Scope::Full,
+            None => Scope::Incremental,
+        })
+    }
+
+    /// The marginal covariance of keyframe `k`'s position in the world frame, m²
+    /// (LIO-SAM's `poseCovariance = isam->marginalCovariance(last)`, its translation
+    /// block turned into the world frame).
+    pub fn position_covariance(&self, k: usize) -> Result<Matrix3<f64>, BackendError> {
+        Ok(self
+            .backend
+            .marginal_covariance(k as u64)?
+            .translation_world())
     }
 
     /// The prior on the first keyframe's pose: 1 mm and 1 mrad (the gauge), except roll
@@ -118,12 +149,25 @@ impl KeyframeGraph {
     /// 2-3 mrad (the simulator's 0.02 m/s² bias) stayed, the bias estimate absorbed the
     /// gravity error in the body frame, and after a U-turn it pulled the poses the other
     /// way (S1: lidar + IMU 0.031 m against lidar only 0.022 m on factrs).
+    ///
+    /// With GPS factors coming, the heading and the position take LIO-SAM's own prior
+    /// (`addOdomFactor`'s `priorNoise`, variances π² rad² in yaw and 1e8 m² in position):
+    /// the map is placed and turned by the GPS factors, and the marginal covariance the
+    /// `poseCovThreshold` rule reads starts large, so that fixes are taken from the start
+    /// and again wherever the estimate has drifted. Held at 1 mm, it would grow only with
+    /// the odometry's noise and reach 25 m² after hundreds of metres.
     fn first_pose_sigmas(&self) -> Vector6<f64> {
         let mut sigmas = Vector6::repeat(1e-3);
         if let Some(noise) = self.imu_noise {
             let tilt = BIAS_PRIOR_ACCEL / noise.gravity_mps2;
             sigmas[0] = tilt;
             sigmas[1] = tilt;
+        }
+        if self.gps {
+            sigmas[2] = PI;
+            for s in sigmas.iter_mut().skip(3) {
+                *s = 1e4;
+            }
         }
         sigmas
     }

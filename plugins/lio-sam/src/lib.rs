@@ -12,15 +12,18 @@
 //! 5. every 1 m or 0.2 rad a keyframe joins the factor graph with a lidar-odometry factor and
 //!    an IMU-preintegration factor, and the graph is updated ([`graph`]);
 //! 6. loop closures are searched among old nearby keyframes, verified by ICP and added as
-//!    robust factors, followed by a full optimisation ([`loop_closure`]).
+//!    robust factors, followed by a full optimisation ([`loop_closure`]);
+//! 7. with `[gps] enabled`, GNSS fixes aligned to the map become GPS factors on keyframes
+//!    by LIO-SAM's rules, each followed by a full optimisation ([`gnss`]).
 //!
 //! Outputs: the pose of every sweep as it is registered; at the end, the optimised keyframe
 //! trajectory carried to every sweep, the keyframes' features as the map, and loop-closure
-//! events. Parameters: [`config::Config`], LIO-SAM's defaults where they apply.
+//! and refused-fix (`gnss_rejected`) events. Parameters: [`config::Config`], LIO-SAM's defaults where they apply.
 
 pub mod config;
 pub mod deskew;
 pub mod features;
+pub mod gnss;
 pub mod graph;
 pub mod imu_odometry;
 pub mod keyframe;

@@ -2,10 +2,10 @@
 
 use std::fmt::Write as _;
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, MapStart, Parameters, PluginError, PointCloud, Pose, PoseStatus,
-    Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
+    Event, EventKind, Gnss as GnssMessage, Imu, MapStart, Parameters, PluginError, PointCloud,
+    Pose, PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
 };
 use slam_common::factor_graph::backend::ImuBias;
 use slam_common::maps::keyframes::{
@@ -18,6 +18,7 @@ use slam_common::registration::voxel::downsample;
 use crate::config::Config;
 use crate::deskew::{SweepLayout, rings};
 use crate::features::{Features, extract};
+use crate::gnss::{Gnss, KeyframeState, Orientations, yaw};
 use crate::graph::KeyframeGraph;
 use crate::imu_odometry::{Correction, ImuOdometry};
 use crate::keyframe::KeyframeView;
@@ -124,6 +125,19 @@ pub struct LioSam {
     /// until the first sweep, the last sweep's features (lidar frame), the last status, and
     /// the poses returned.
     localizer: Option<Localizing>,
+    /// GPS factors (`[gps] enabled` and a receiver in the rig): the fixes, their alignment
+    /// and LIO-SAM's selection (`gnss.rs`).
+    gnss: Option<Gnss>,
+    /// The IMU's reported orientations, kept where the GPS alignment or
+    /// `useImuHeadingInitialization` needs them.
+    orientations: Option<Orientations>,
+    /// The last keyframe's marginal position covariance in the map frame (LIO-SAM's
+    /// `poseCovariance`), computed after each keyframe while GPS factors are on.
+    pose_covariance: Option<Matrix3<f64>>,
+    /// The IMU odometry's frame from the map's: the identity until a GPS factor moves the
+    /// map, then the inverse of the corrections so far, so that the IMU odometry sees a
+    /// continuous track (LIO-SAM feeds it `odometry_incremental`, which never jumps).
+    odom_from_world: Isometry3<f64>,
 }
 
 /// A localisation run's state (`vinebench localize`).
@@ -169,7 +183,7 @@ impl LioSam {
                 &self.cfg.mapping,
             ))
         };
-        let world_from_lidar = match outcome {
+        let mut world_from_lidar = match outcome {
             Some(Ok(r)) => r.world_from_lidar,
             _ => predicted,
         };
@@ -192,6 +206,7 @@ impl LioSam {
             reset: false,
         });
         self.after_registration(start, &world_from_lidar);
+        self.align_gnss();
         // The registration left (a direction of) the pose to the prediction.
         let degenerate = match outcome {
             None => false,
@@ -205,8 +220,11 @@ impl LioSam {
         }
         let loops_before = self.looped.len();
         let keyframe = self.is_keyframe(&world_from_lidar);
-        if keyframe {
-            self.add_keyframe(start, world_from_lidar, features)?;
+        if keyframe
+            && let Some(correction) = self.add_keyframe(start, world_from_lidar, features)?
+        {
+            // A GPS factor moved the map: this sweep is the new keyframe, where it now is.
+            world_from_lidar = correction * world_from_lidar;
         }
         if let Some(mut row) = row.take() {
             row.keyframe = keyframe;
@@ -259,17 +277,81 @@ impl LioSam {
                 let up = self.imu.mean_accel().unwrap_or(Vector3::z());
                 let world_r_imu =
                     UnitQuaternion::rotation_between(&up, &Vector3::z()).unwrap_or_default();
+                let world_r_imu = self.initial_heading(start_ns, world_r_imu, &Default::default());
                 let world_from_imu = Isometry3::from_parts(Vector3::zeros().into(), world_r_imu);
                 Motion::new(vec![(start_ns, world_from_imu * self.imu_from_lidar)])
             }
             // The velocity over several sweeps: from only the last two, registration noise
             // feeds back through deskewing and grows into an oscillation.
             (_, false) => match self.previous.as_slice() {
-                [] => Motion::new(vec![(start_ns, Isometry3::identity())]),
+                [] => Motion::new(vec![(
+                    start_ns,
+                    Isometry3::from_parts(
+                        Vector3::zeros().into(),
+                        self.initial_heading(
+                            start_ns,
+                            UnitQuaternion::identity(),
+                            &self.imu_from_lidar.rotation,
+                        ),
+                    ),
+                )]),
                 [only] => Motion::new(vec![*only]),
                 [first, .., last] => Motion::new(vec![*first, *last]),
             },
         }
+    }
+
+    /// The first sweep's rotation `world_r_frame` turned about the vertical to the IMU's
+    /// reported heading (`imu_r_frame` carries the IMU's orientation to the frame's) with
+    /// `useImuHeadingInitialization` (LIO-SAM sets the first keyframe's yaw to the IMU's;
+    /// roll and pitch stay ours, from gravity); unchanged without it.
+    fn initial_heading(
+        &self,
+        start_ns: i64,
+        world_r_frame: UnitQuaternion<f64>,
+        imu_r_frame: &UnitQuaternion<f64>,
+    ) -> UnitQuaternion<f64> {
+        if !self.cfg.gps.use_imu_heading_initialization {
+            return world_r_frame;
+        }
+        let Some(enu_r_imu) = self.orientations.as_ref().and_then(|o| o.at(start_ns)) else {
+            return world_r_frame;
+        };
+        let turn = yaw(&(enu_r_imu * imu_r_frame)) - yaw(&world_r_frame);
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), turn) * world_r_frame
+    }
+
+    /// Until the fixes' frame is aligned with the map's: tries the queued fixes against
+    /// the last registered sweeps (navsat_transform's step, `gnss.rs`).
+    fn align_gnss(&mut self) {
+        let (Some(gnss), Some(orientations)) = (&mut self.gnss, &self.orientations) else {
+            return;
+        };
+        if gnss.map_from_enu().is_some() {
+            return;
+        }
+        let lidar_from_imu = self.imu_from_lidar.inverse();
+        let track: Vec<(i64, Isometry3<f64>)> = self
+            .previous
+            .iter()
+            .map(|(t, world_from_lidar)| (*t, world_from_lidar * lidar_from_imu))
+            .collect();
+        gnss.align(&track, orientations);
+    }
+
+    /// Carries the front end into the map as a GPS factor moved it, `correction` =
+    /// `world_new_from_world_old` at the newest keyframe (LIO-SAM continues from the
+    /// corrected `transformTobeMapped`): the IMU state and the last sweeps move with it,
+    /// and the IMU odometry's frame keeps it out (its track stays continuous).
+    fn carry(&mut self, correction: &Isometry3<f64>) {
+        for (_, p) in &mut self.previous {
+            *p = correction * *p;
+        }
+        if let Some((_, state)) = &mut self.nav {
+            state.world_from_imu = correction * state.world_from_imu;
+            state.velocity_mps = correction.rotation * state.velocity_mps;
+        }
+        self.odom_from_world *= correction.inverse();
     }
 
     /// Carries the IMU state to the registered pose at the sweep's start.
@@ -319,19 +401,21 @@ impl LioSam {
                 .map(|(_, s)| s)
                 .collect()
         });
+        // In the IMU odometry's own frame, which GPS corrections do not move.
+        let odom = self.odom_from_world;
         let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
         let correction = estimator
             .correct(
                 start_ns,
-                &world_from_imu,
-                nav.velocity_mps,
+                &(odom * world_from_imu),
+                odom.rotation * nav.velocity_mps,
                 degenerate,
                 samples,
             )
             .map_err(|e| PluginError::new(format!("IMU odometry: {e}")))?;
         match correction {
             Correction::State { velocity_mps, bias } => {
-                nav.velocity_mps = velocity_mps;
+                nav.velocity_mps = odom.rotation.inverse() * velocity_mps;
                 self.bias = bias;
                 Ok(false)
             }
@@ -364,13 +448,15 @@ impl LioSam {
         self.graph.pose(k) * self.imu_from_lidar
     }
 
-    /// Adds a keyframe to the graph, looks for a loop, and rebuilds the local map.
+    /// Adds a keyframe to the graph (with a GPS factor where LIO-SAM's rules give one),
+    /// looks for a loop, and rebuilds the local map. Returns the correction
+    /// `world_new_from_world_old` a GPS factor made at this keyframe.
     fn add_keyframe(
         &mut self,
         stamp_ns: i64,
         world_from_lidar: Isometry3<f64>,
         features: Features,
-    ) -> Result<(), PluginError> {
+    ) -> Result<Option<Isometry3<f64>>, PluginError> {
         let world_from_imu = world_from_lidar * self.imu_from_lidar.inverse();
         let samples = match self.keyframes.last() {
             Some(prev) if self.cfg.use_imu && self.cfg.imu_factors => {
@@ -379,16 +465,52 @@ impl LioSam {
             _ => Vec::new(),
         };
         let velocity = self.nav.map_or(Vector3::zeros(), |(_, s)| s.velocity_mps);
+        let gps = match &mut self.gnss {
+            Some(gnss) => {
+                let n = self.graph.len();
+                let state = KeyframeState {
+                    stamp_ns,
+                    map_from_imu: world_from_imu,
+                    first_and_last: (n > 0).then(|| {
+                        (
+                            self.graph.pose(0).translation.vector,
+                            self.graph.pose(n - 1).translation.vector,
+                        )
+                    }),
+                    last_covariance: self.pose_covariance,
+                };
+                gnss.select(&state, &mut self.events)
+            }
+            None => None,
+        };
         self.graph
-            .add_keyframe(world_from_imu, velocity, self.bias, samples)
+            .add_keyframe(
+                world_from_imu,
+                velocity,
+                self.bias,
+                samples,
+                gps.map(|f| (f.position, f.sigmas)),
+            )
             .map_err(|e| PluginError::new(format!("factor graph: {e}")))?;
+        let k = self.keyframes.len();
+        let correction = gps.map(|_| self.graph.pose(k) * world_from_imu.inverse());
+        if let Some(c) = &correction {
+            self.carry(c);
+        }
         self.keyframes.push(Keyframe {
             stamp_ns,
             features,
-            registered_world_from_lidar: world_from_lidar,
+            registered_world_from_lidar: correction.unwrap_or_default() * world_from_lidar,
         });
         if self.cfg.loop_closure.enabled {
             self.close_loop(stamp_ns)?;
+        }
+        if self.gnss.is_some() {
+            self.pose_covariance = Some(
+                self.graph
+                    .position_covariance(k)
+                    .map_err(|e| PluginError::new(format!("factor graph: {e}")))?,
+            );
         }
         // The state at the newest keyframe, as optimised.
         let k = self.keyframes.len() - 1;
@@ -403,7 +525,7 @@ impl LioSam {
             ));
         }
         self.rebuild_map();
-        Ok(())
+        Ok(correction)
     }
 
     /// IMU samples between two keyframes.
@@ -509,6 +631,16 @@ impl SlamSystem for LioSam {
         Requirements::online(&[SensorKind::Lidar, SensorKind::Imu]).localizing()
     }
 
+    /// The GNSS receiver too when `[gps] enabled`.
+    fn requirements_for(config_toml: &str) -> Result<Requirements, PluginError> {
+        let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
+        let mut requirements = Self::requirements();
+        if cfg.gps.enabled {
+            requirements.sensors.push(SensorKind::Gnss);
+        }
+        Ok(requirements)
+    }
+
     /// Localisation in a map a mapping run saved: the front end runs as in mapping (its own
     /// loop closure off: the saved map is the reference), and each sweep's features are
     /// registered to the saved keyframes (`slam_common::maps::localizer`).
@@ -522,6 +654,8 @@ impl SlamSystem for LioSam {
         let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
         let mut system = Self::new(config_toml, rig)?;
         system.cfg.loop_closure.enabled = false;
+        // The saved map is the reference: no GPS factors move it.
+        system.gnss = None;
         let guess = start
             .initial_guess
             .and_then(|g| g.map_from_base.isometry())
@@ -553,19 +687,52 @@ impl SlamSystem for LioSam {
             ));
         }
         let imu_noise = cfg.imu.resolve(&imu.noise, cfg.gravity_mps2);
+        let base_from_imu = imu.base_from_sensor();
+        let reports_orientation = imu.intrinsics.get("reports_orientation") == Some(&1.0);
+        let needs_orientation = |what: &str| {
+            PluginError::new(format!(
+                "lio-sam: {what} needs the IMU's orientation (the world's [sensors.imu] \
+                 reports_orientation = true), as LIO-SAM needs a 9-axis IMU"
+            ))
+        };
+        if cfg.gps.use_imu_heading_initialization && !reports_orientation {
+            return Err(needs_orientation("[gps] useImuHeadingInitialization"));
+        }
+        let gnss = match (cfg.gps.enabled, rig.first(SensorKind::Gnss)) {
+            (false, _) => None,
+            (true, None) => {
+                eprintln!(
+                    "lio-sam: [gps] enabled, but the world has no GNSS receiver: no GPS factors"
+                );
+                None
+            }
+            (true, Some(_)) if !reports_orientation => {
+                return Err(needs_orientation(
+                    "[gps] enabled (aligning the fixes' east-north-up frame with the map)",
+                ));
+            }
+            (true, Some(receiver)) => {
+                let imu_from_antenna = (base_from_imu.inverse() * receiver.base_from_sensor())
+                    .translation
+                    .vector;
+                Some(Gnss::new(cfg.gps.clone(), imu_from_antenna))
+            }
+        };
         let graph = KeyframeGraph::new(
             &cfg.backend,
             (cfg.use_imu && cfg.imu_factors).then_some(imu_noise),
             cfg.mapping.odometry_sigma_rad,
             cfg.mapping.odometry_sigma_m,
+            gnss.is_some(),
         )
         .map_err(|e| PluginError::new(format!("backend: {e}")))?;
         let imu_odometry = (cfg.use_imu && !cfg.imu_factors)
             .then(|| ImuOdometry::new(&cfg.backend, imu_noise))
             .transpose()
             .map_err(|e| PluginError::new(format!("backend: {e}")))?;
-        let base_from_imu = imu.base_from_sensor();
         let base_from_lidar = lidar.base_from_sensor();
+        let orientations =
+            (gnss.is_some() || cfg.gps.use_imu_heading_initialization).then(Orientations::default);
         Ok(Self {
             imu_from_lidar: base_from_imu.inverse() * base_from_lidar,
             lidar_from_base: base_from_lidar.inverse(),
@@ -589,6 +756,10 @@ impl SlamSystem for LioSam {
             trace: Vec::new(),
             imu_odometry,
             localizer: None,
+            gnss,
+            orientations,
+            pose_covariance: None,
+            odom_from_world: Isometry3::identity(),
             cfg,
         })
     }
@@ -596,6 +767,18 @@ impl SlamSystem for LioSam {
     fn on_imu(&mut self, imu: &Imu) -> Result<Option<Pose>, PluginError> {
         if self.cfg.use_imu {
             self.imu.push(*imu);
+        }
+        if let (Some(orientations), Some(q)) = (&mut self.orientations, imu.orientation()) {
+            orientations.push(imu.stamp_ns, q);
+        }
+        Ok(None)
+    }
+
+    /// Queues a usable fix for the next keyframes' GPS factors; refuses one that cannot be
+    /// used with a `gnss_rejected` event (never an error). Ignored without `[gps]`.
+    fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
+        if let Some(g) = &mut self.gnss {
+            g.push(gnss, &mut self.events);
         }
         Ok(None)
     }
@@ -636,6 +819,17 @@ impl SlamSystem for LioSam {
                 trajectory: std::mem::take(&mut l.trajectory),
                 ..SlamOutput::default()
             });
+        }
+        if let Some(g) = &self.gnss {
+            eprintln!(
+                "lio-sam: {} GPS factors; fixes' frame {}",
+                g.factors,
+                if g.map_from_enu().is_some() {
+                    "aligned"
+                } else {
+                    "never aligned (no usable fix during a registered sweep)"
+                }
+            );
         }
         let trajectory = self
             .sweeps
@@ -707,5 +901,119 @@ impl SlamSystem for LioSam {
                 bytes: saved.to_bytes(),
             }),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use plugin_api::{EventKind, Gnss, GnssStatus, SensorSpec};
+
+    use super::*;
+
+    fn sensor(kind: SensorKind, xyz: [f64; 3], intrinsics: &[(&str, f64)]) -> SensorSpec {
+        SensorSpec {
+            name: kind.name().into(),
+            kind,
+            rate_hz: 10.0,
+            base_from_sensor_xyz: xyz,
+            base_from_sensor_xyzw: [0.0, 0.0, 0.0, 1.0],
+            intrinsics: intrinsics
+                .iter()
+                .map(|(k, v)| (k.to_string(), *v))
+                .collect(),
+            noise: Default::default(),
+        }
+    }
+
+    fn rig(orientation: bool, receiver: bool) -> Rig {
+        let mut sensors = vec![
+            sensor(SensorKind::Lidar, [0.0, 0.0, 1.0], &[("columns", 1800.0)]),
+            sensor(
+                SensorKind::Imu,
+                [0.0, 0.0, 0.6],
+                &[("reports_orientation", f64::from(u8::from(orientation)))],
+            ),
+        ];
+        if receiver {
+            sensors.push(sensor(SensorKind::Gnss, [-0.2, 0.0, 1.7], &[]));
+        }
+        Rig { sensors }
+    }
+
+    const GPS_ON: &str = "[gps]\nenabled = true\n";
+
+    #[test]
+    fn the_receiver_is_asked_for_only_with_gps_on() {
+        // Guards requirements_for: GNSS joins the sensors with `[gps] enabled`, not by
+        // default (plugins without it never meet the kind), and LIO-SAM's names parse.
+        let off = LioSam::requirements_for("").expect("defaults");
+        assert!(!off.sensors.contains(&SensorKind::Gnss));
+        assert_eq!(off, LioSam::requirements());
+        let on = LioSam::requirements_for(
+            "[gps]\nenabled = true\nuseGpsElevation = true\ngpsCovThreshold = 0.5\n\
+             poseCovThreshold = 4.0\nuseImuHeadingInitialization = false\n",
+        )
+        .expect("gps");
+        assert!(on.sensors.contains(&SensorKind::Gnss));
+        assert!(on.sensors.contains(&SensorKind::Lidar) && on.can_localize);
+        assert!(LioSam::requirements_for("[gps]\nuse_gps = true\n").is_err());
+    }
+
+    #[test]
+    fn gps_needs_the_imus_heading_and_does_without_a_receiver() {
+        // Guards the set-up: the alignment needs the IMU's orientation (an error saying
+        // so), a world without a receiver leaves GPS off, and the lever arm is the
+        // antenna's mount seen from the IMU.
+        let err = LioSam::new(GPS_ON, &rig(false, true)).expect_err("no orientation");
+        assert!(err.0.contains("reports_orientation"), "{err}");
+        let err = LioSam::new(
+            "[gps]\nuseImuHeadingInitialization = true\n",
+            &rig(false, false),
+        )
+        .expect_err("no orientation");
+        assert!(err.0.contains("useImuHeadingInitialization"), "{err}");
+        let without = LioSam::new(GPS_ON, &rig(true, false)).expect("no receiver");
+        assert!(without.gnss.is_none());
+        let with = LioSam::new(GPS_ON, &rig(true, true)).expect("receiver");
+        assert!(with.gnss.is_some() && with.orientations.is_some());
+        let off = LioSam::new("", &rig(false, true)).expect("gps off");
+        assert!(off.gnss.is_none() && off.orientations.is_none());
+    }
+
+    #[test]
+    fn a_broken_fix_is_an_event_not_an_error() {
+        // Guards on_gnss: NaN, no fix and a zero covariance are refused with
+        // gnss_rejected events in the output, never an error or a panic; without
+        // `[gps]` fixes are ignored.
+        let mut system = LioSam::new(GPS_ON, &rig(true, true)).expect("receiver");
+        let fix = Gnss {
+            stamp_ns: 5,
+            status: GnssStatus::Float,
+            satellites: 9,
+            position_enu_m: [f64::NAN, 1.0, 2.0],
+            covariance_enu_m2: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.04],
+            latitude_deg: f64::NAN,
+            longitude_deg: f64::NAN,
+            altitude_m: f64::NAN,
+            hdop: 1.2,
+        };
+        assert_eq!(system.on_gnss(&fix), Ok(None));
+        let no_fix = Gnss {
+            status: GnssStatus::NoFix,
+            ..fix
+        };
+        assert_eq!(system.on_gnss(&no_fix), Ok(None));
+        let flat = Gnss {
+            position_enu_m: [1.0, 2.0, 3.0],
+            covariance_enu_m2: [0.0; 9],
+            ..fix
+        };
+        assert_eq!(system.on_gnss(&flat), Ok(None));
+        let output = system.finish().expect("finish");
+        let kinds: Vec<EventKind> = output.events.iter().map(|e| e.kind).collect();
+        assert_eq!(kinds, vec![EventKind::GnssRejected; 3]);
+        let mut off = LioSam::new("", &rig(true, true)).expect("gps off");
+        assert_eq!(off.on_gnss(&fix), Ok(None));
+        assert!(off.finish().expect("finish").events.is_empty());
     }
 }

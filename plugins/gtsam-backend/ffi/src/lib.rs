@@ -36,12 +36,14 @@
 //! | `u` update | `u8` 1 for a full update, 0 for incremental | report and keys (below) |
 //! | `e` factor error | `u64` factor id | `u8` 1 if known, `f64` whitened residual norm |
 //! | `v` value | `u8` kind, `u64` key | ISAM2's estimate: pose 12 `f64` (rotation matrix row-major, then translation), velocity 3, bias 6 (accelerometer, then gyroscope) |
+//! | `c` marginal covariance | `u8` kind (`x` only), `u64` key | ISAM2's `marginalCovariance`: 36 `f64`, the 6 × 6 matrix row-major in `Pose3`'s tangent order (rotation, then translation) |
 //!
 //! Factor types: `p` pose prior (`u64` key, pose, 6 `f64` sigmas rotation then
 //! translation); `v` velocity prior (`u64` key, 3 `f64`, `f64` sigma); `b` bias prior
 //! (`u64` key, bias, `f64` accelerometer sigma, `f64` gyroscope sigma); `B` between (`u64`
 //! from, `u64` to, pose `from_from_to`, 6 sigmas, `u8` kernel 0 none, 1 Huber, 2 Cauchy,
-//! `f64` kernel width); `I` IMU (`u64` from, `u64` to, bias linearisation point, 6 `f64`:
+//! `f64` kernel width); `P` position (`u64` key, 3 `f64` world position, 3 `f64` sigmas:
+//! GTSAM's `GPSFactor`); `I` IMU (`u64` from, `u64` to, bias linearisation point, 6 `f64`:
 //! accelerometer and gyroscope noise densities, their bias random walks, gravity m/s²,
 //! integration covariance m²/s; `u64` n, then n samples of 7 `f64`: dt, specific force xyz,
 //! angular rate xyz).

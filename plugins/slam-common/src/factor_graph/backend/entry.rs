@@ -9,6 +9,7 @@
 //! - Priors: `z ⊖ x = log(x⁻¹·z)`, an error in the body frame, rotation first.
 //! - Between: factrs's `BetweenResidual` computes `(x_from·z) ⊖ x_to =
 //!   log(x_to⁻¹·x_from·z)`, so `z` is `from_from_to` as our contract has it.
+//! - Position: `t(x) − z` in the world frame (module `position`, GTSAM's `GPSFactor`).
 
 use ::factrs::{
     containers::{Factor as FFactor, FactorBuilder, Key},
@@ -17,7 +18,7 @@ use ::factrs::{
     robust::{Cauchy, Huber},
 };
 
-use super::{BackendError, Factor, Robust, Var, convert, imu::Preintegrated};
+use super::{BackendError, Factor, Robust, Var, convert, imu::Preintegrated, position};
 
 #[derive(Debug, Clone)]
 enum Kind {
@@ -125,6 +126,16 @@ fn plain(f: &Factor, key: impl Fn(Var) -> Key, robust: bool) -> FFactor {
         )
         .noise(convert::bias_noise(*sigma_accel, *sigma_gyro))
         .build(),
+        Factor::Position {
+            key: k,
+            position,
+            sigmas,
+        } => FactorBuilder::new1_unchecked(
+            position::PositionResidual::new(*position),
+            key(Var::Pose(*k)),
+        )
+        .noise(GaussianNoise::<3>::from_vec_sigma(sigmas.as_view()))
+        .build(),
         Factor::Between {
             from,
             to,
@@ -152,7 +163,7 @@ fn plain(f: &Factor, key: impl Fn(Var) -> Key, robust: bool) -> FFactor {
 
 pub(crate) fn vars_of(f: &Factor) -> Vec<Var> {
     match f {
-        Factor::PosePrior { key, .. } => vec![Var::Pose(*key)],
+        Factor::PosePrior { key, .. } | Factor::Position { key, .. } => vec![Var::Pose(*key)],
         Factor::VelocityPrior { key, .. } => vec![Var::Velocity(*key)],
         Factor::BiasPrior { key, .. } => vec![Var::Bias(*key)],
         Factor::Between { from, to, .. } => vec![Var::Pose(*from), Var::Pose(*to)],
@@ -191,6 +202,12 @@ pub(crate) fn check(f: &Factor) -> Result<(), BackendError> {
         } => {
             convert::check_value(&super::Value::Bias(*bias))?;
             convert::check_positive("bias prior sigma", &[*sigma_accel, *sigma_gyro])
+        }
+        Factor::Position {
+            position, sigmas, ..
+        } => {
+            convert::check_finite("position prior", position.as_slice())?;
+            convert::check_positive("position prior sigma", sigmas.as_slice())
         }
         Factor::Between {
             from,

@@ -8,16 +8,25 @@
 //! warm-started from the current estimate. [`Scope::Incremental`] solves only the newest
 //! `window` keyframes (the `scope` module explains how this approximates iSAM2);
 //! [`Scope::Full`] solves everything.
+//!
+//! [`Backend::marginal_covariance`] linearises every factor at the current estimate and
+//! eliminates the whole system with the pose last (the native iSAM2's elimination, module
+//! `isam2`), reading its covariance from the root clique: the marginal of the full graph's
+//! information matrix. Not the window's alone: there the poses older than the window are
+//! held fixed, which would give the covariance *conditional* on them — one that stops
+//! growing after `window` keyframes of odometry, where LIO-SAM's `poseCovThreshold` needs
+//! it to keep growing. The cost is a pass over the graph per call.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use ::factrs::containers::{Key, Values};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Matrix6};
 
 use super::{
-    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, Scope, UpdateReport, Value,
-    Var, convert,
+    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, PoseCovariance, Scope,
+    UpdateReport, Value, Var, convert,
     entry::Entry,
+    isam2,
     scope::{self, keyframe},
     solve::{self, Slot},
 };
@@ -169,6 +178,54 @@ impl Backend for FactrsBackend {
 
     fn pose_keys(&self) -> Vec<u64> {
         self.pose_range().map(|(v, _)| keyframe(*v)).collect()
+    }
+
+    /// Every factor linearised at the current estimate (robust ones reweighted there, as
+    /// the solver does), eliminated with the pose last: see the module documentation.
+    fn marginal_covariance(&self, key: u64) -> Result<PoseCovariance, BackendError> {
+        let var = Var::Pose(key);
+        let target = self
+            .vars
+            .get(&var)
+            .ok_or(BackendError::MissingVariable(var))?;
+        let Value::Pose(world_from_body) = target.value else {
+            return Err(BackendError::MissingVariable(var));
+        };
+        // factrs keys are the dense indices `insert` gave.
+        let mut dims = vec![0; self.vars.len()];
+        let mut values = Values::new();
+        for (v, slot) in &self.vars {
+            dims[slot.key.0 as usize] = match v {
+                Var::Pose(_) | Var::Bias(_) => 6,
+                Var::Velocity(_) => 3,
+            };
+            solve::insert(&mut values, slot.key, &slot.value);
+        }
+        let key_of = |v: Var| self.vars.get(&v).map_or(Key(u64::MAX), |s| s.key);
+        let mut linear = Vec::with_capacity(self.factors.len());
+        for entry in self.factors.values() {
+            let factor = entry.build(key_of, true);
+            linear.push(isam2::linearise(&factor, &values, &dims).ok_or_else(|| {
+                BackendError::Solver(format!(
+                    "a factor on {:?} linearised to non-finite values",
+                    entry.vars()
+                ))
+            })?);
+        }
+        let cov = isam2::covariance_of(&linear, &dims, target.key.0 as usize).map_err(|i| {
+            let unconstrained = self
+                .vars
+                .iter()
+                .find(|(_, s)| s.key.0 as usize == i)
+                .map_or(var, |(v, _)| *v);
+            BackendError::Solver(format!(
+                "no marginal of pose {key}: {unconstrained:?} is not constrained (no prior?)"
+            ))
+        })?;
+        Ok(PoseCovariance {
+            tangent: Matrix6::from_fn(|r, c| cov[(r, c)]),
+            world_from_body,
+        })
     }
 
     fn pose(&self, key: u64) -> Option<Isometry3<f64>> {

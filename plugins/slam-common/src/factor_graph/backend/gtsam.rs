@@ -23,7 +23,8 @@
 //!   `PriorFactorVector`, `PriorFactorConstantBias` (`imuBias.ConstantBias(accel, gyro)`,
 //!   whose vector, like its sigmas, is accelerometer first); a between factor is
 //!   `BetweenFactorPose3(x(from), x(to), from_from_to)`, with a kernel
-//!   `noiseModel.Robust(mEstimator.Huber | Cauchy(k), Diagonal.Sigmas)`;
+//!   `noiseModel.Robust(mEstimator.Huber | Cauchy(k), Diagonal.Sigmas)`; a position factor
+//!   is `GPSFactor(x(key), position, Diagonal.Sigmas)` (error `t(x) − position`, as ours);
 //! - an IMU factor is GTSAM's `CombinedImuFactor` on `PreintegrationCombinedParams.
 //!   MakeSharedU(g)` (gravity along −z), integrating each sample with
 //!   `integrateMeasurement(accel, gyro, dt)` from the bias estimate of `from` when the
@@ -45,7 +46,10 @@
 //!   current estimate; [`Backend::remove`] queues the factor's ISAM2 index for the next
 //!   update (or drops it if it has not reached ISAM2 yet);
 //! - [`Backend::set_value`] works only for a variable ISAM2 has not taken yet: ISAM2 has no
-//!   way to overwrite its linearisation point.
+//!   way to overwrite its linearisation point;
+//! - [`Backend::marginal_covariance`] is ISAM2's `marginalCovariance(x(key))`: from its Bayes
+//!   tree at the linearisation point, in `Pose3`'s tangent order (rotation, then
+//!   translation, both in the body frame), ours; a pose ISAM2 has not taken yet has none.
 //!
 //! The update report: `variables` = variables ISAM2 re-eliminated (all of them for a full
 //! update), `factors` = factors it relinearised (ISAM2Result's counts), `iterations` =
@@ -60,12 +64,12 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use gtsam_ffi::{BridgeRef, Reader, Writer};
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use super::entry::{check, vars_of};
 use super::{
-    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, Robust, Scope, UpdateReport,
-    Value, Var, convert, imu::INTEGRATION_VARIANCE_PER_S,
+    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, PoseCovariance, Robust, Scope,
+    UpdateReport, Value, Var, convert, imu::INTEGRATION_VARIANCE_PER_S,
 };
 
 /// The bridge library's file name (cargo's name for the `vinebench_gtsam` cdylib).
@@ -351,6 +355,16 @@ fn encode(id: FactorId, f: &Factor, from_bias: Option<ImuBias>) -> Writer {
             bias(&mut w, b);
             w.f64(*sigma_accel).f64(*sigma_gyro);
         }
+        Factor::Position {
+            key,
+            position,
+            sigmas,
+        } => {
+            w.u8(b'P')
+                .u64(*key)
+                .f64s(position.as_slice())
+                .f64s(sigmas.as_slice());
+        }
         Factor::Between {
             from,
             to,
@@ -518,5 +532,32 @@ impl Backend for GtsamBackend {
             .range(Var::Pose(0)..=Var::Pose(u64::MAX))
             .map(|(v, _)| kind_and_key(*v).1)
             .collect()
+    }
+
+    fn marginal_covariance(&self, key: u64) -> Result<PoseCovariance, BackendError> {
+        let var = Var::Pose(key);
+        if !self.vars.contains_key(&var) {
+            return Err(BackendError::MissingVariable(var));
+        }
+        if !self.in_isam.contains(&var) {
+            return Err(BackendError::Invalid(format!(
+                "no marginal of pose {key}: no update has given it to ISAM2 yet"
+            )));
+        }
+        let mut w = Writer::new(b'c');
+        w.u8(b'x').u64(key);
+        let reply = self.call(&w)?;
+        let mut r = Reader::new(&reply);
+        let m: [f64; 36] = r
+            .f64s()
+            .ok_or_else(|| protocol_error("marginal covariance"))?;
+        if !r.is_empty() {
+            return Err(protocol_error("marginal covariance"));
+        }
+        let world_from_body = self.pose(key).ok_or(BackendError::MissingVariable(var))?;
+        Ok(PoseCovariance {
+            tangent: Matrix6::from_row_slice(&m),
+            world_from_body,
+        })
     }
 }

@@ -5,8 +5,13 @@
 //! Poses are `world_from_body` isometries; the body is whatever frame the plugin keeps its
 //! graph in (for IMU factors: the IMU's frame). Keys are plain integers per kind of
 //! variable, so pose 7, velocity 7 and bias 7 belong to the same keyframe.
+//!
+//! Every backend perturbs a pose on the right, rotation first: `x ⊕ ξ = x·exp(ξ)` with
+//! `ξ = (ω, ρ)`, `ω` a rotation about the body's x, y, z axes (rad) and `ρ` a translation
+//! along them (m) — GTSAM's `Pose3` chart, factrs's default. [`PoseSigmas`] and the
+//! marginal covariances of [`Backend::marginal_covariance`] are in that tangent space.
 
-use nalgebra::{Isometry3, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Vector3, Vector6};
 use serde::Deserialize;
 
 mod convert;
@@ -15,6 +20,7 @@ mod factrs;
 mod gtsam;
 mod imu;
 mod isam2;
+mod position;
 mod profile;
 mod scope;
 mod solve;
@@ -117,6 +123,17 @@ pub enum Factor {
         sigma_accel: f64,
         sigma_gyro: f64,
     },
+    /// A position-only prior on a pose's translation, in the world frame (a GNSS fix
+    /// carried to the body's origin): GTSAM's `GPSFactor` ("prior on position in a
+    /// Cartesian frame", `gtsam/navigation/GPSFactor.h`, the factor LIO-SAM's
+    /// `addGPSFactor` adds), whose error is `t(x) − position` with `t(x)` the translation
+    /// of `world_from_body`, whitened by the diagonal `sigmas` (m, along the world's x, y,
+    /// z). Its Jacobian in the tangent space above is `[0  R]`: rotation is left free.
+    Position {
+        key: u64,
+        position: Vector3<f64>,
+        sigmas: Vector3<f64>,
+    },
     /// Relative pose `from_from_to` (odometry, a loop closure), optionally robust.
     Between {
         from: u64,
@@ -204,12 +221,55 @@ pub trait Backend: Send + std::fmt::Debug {
     fn factor_error(&self, id: FactorId) -> Option<f64>;
     /// Every pose key, ascending.
     fn pose_keys(&self) -> Vec<u64>;
+    /// The marginal covariance of pose `key` given every factor (GTSAM's
+    /// `ISAM2::marginalCovariance`, which LIO-SAM reads after each keyframe): the 6 × 6
+    /// covariance of the tangent vector `ξ` of `x ⊕ ξ = x·exp(ξ)` (rotation about the body's
+    /// axes first, then translation along them; see the module documentation), at the
+    /// linearisation of the factors the backend holds. How each backend computes it:
+    /// `"isam2"` and `"gtsam"` from their Bayes tree as of the last update (a pose no update
+    /// has taken yet is [`BackendError::Invalid`]), `"factrs"` from every factor linearised
+    /// at the current estimate. An unknown key is [`BackendError::MissingVariable`].
+    fn marginal_covariance(&self, key: u64) -> Result<PoseCovariance, BackendError>;
 
     fn pose(&self, key: u64) -> Option<Isometry3<f64>> {
         match self.value(Var::Pose(key))? {
             Value::Pose(p) => Some(p),
             _ => None,
         }
+    }
+}
+
+/// The marginal covariance of a pose ([`Backend::marginal_covariance`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseCovariance {
+    /// Covariance of the tangent vector `ξ = (ω, ρ)` of `x ⊕ ξ = x·exp(ξ)`: rotation about
+    /// the body's x, y, z (rad²) in rows and columns 0–2, translation along the body's
+    /// x, y, z (m²) in 3–5 — GTSAM's `Pose3` order, so `(3, 3)` and `(4, 4)` are the
+    /// entries LIO-SAM's `poseCovariance(3,3)` and `(4,4)` read.
+    pub tangent: Matrix6<f64>,
+    /// The pose's current estimate, `world_from_body`, whose rotation turns the body-frame
+    /// blocks into the world frame.
+    pub world_from_body: Isometry3<f64>,
+}
+
+impl PoseCovariance {
+    /// The translation's covariance in the world frame, m²: to first order `x·exp(ξ)`
+    /// moves the translation by `R·ρ`, so it is `R·Σ_ρρ·Rᵀ` (rows and columns: the world's
+    /// x, y, z).
+    pub fn translation_world(&self) -> Matrix3<f64> {
+        let r = self.world_from_body.rotation.to_rotation_matrix();
+        let body: Matrix3<f64> = self.tangent.fixed_view::<3, 3>(3, 3).into_owned();
+        r.matrix() * body * r.matrix().transpose()
+    }
+
+    /// The translation's covariance along the body's axes, m² (the tangent's `ρ` block).
+    pub fn translation_body(&self) -> Matrix3<f64> {
+        self.tangent.fixed_view::<3, 3>(3, 3).into_owned()
+    }
+
+    /// The rotation's covariance about the body's axes, rad² (the tangent's `ω` block).
+    pub fn rotation_body(&self) -> Matrix3<f64> {
+        self.tangent.fixed_view::<3, 3>(0, 0).into_owned()
     }
 }
 

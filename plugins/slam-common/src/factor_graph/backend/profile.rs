@@ -8,7 +8,9 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 
-use super::{Backend, BackendError, Factor, FactorId, Scope, UpdateReport, Value, Var};
+use super::{
+    Backend, BackendError, Factor, FactorId, PoseCovariance, Scope, UpdateReport, Value, Var,
+};
 
 /// One update: poses in the graph, whether it was full, and how long it took.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +98,10 @@ impl Backend for Profiled {
 
     fn pose_keys(&self) -> Vec<u64> {
         self.inner.pose_keys()
+    }
+
+    fn marginal_covariance(&self, key: u64) -> Result<PoseCovariance, BackendError> {
+        self.inner.marginal_covariance(key)
     }
 
     fn pose(&self, key: u64) -> Option<Isometry3<f64>> {

@@ -29,6 +29,12 @@
 //! (automatic differentiation of the same residuals the factrs backend uses; robust
 //! kernels by iterative reweighting, as GTSAM's `Robust` noise model). Removing a factor
 //! takes effect at the next update.
+//!
+//! A pose's marginal covariance comes from the Bayes tree as of the last update, top-down
+//! from the root to the pose's clique ([`BayesTree::covariance`], what GTSAM's
+//! `ISAM2::marginalCovariance` does): cheap for the newest poses, which the constrained
+//! ordering keeps in the root. The factrs backend uses the same elimination on its whole
+//! graph ([`covariance_of`]).
 
 mod linear;
 mod ordering;
@@ -38,11 +44,11 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use ::factrs::containers::{Key, Values};
 use ::factrs::variables::Variable;
-use nalgebra::{DMatrix, DVector, Isometry3};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix6};
 
 use super::{
-    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, Scope, UpdateReport, Value,
-    Var, convert, entry::Entry, solve,
+    Backend, BackendConfig, BackendError, Factor, FactorId, ImuBias, PoseCovariance, Scope,
+    UpdateReport, Value, Var, convert, entry::Entry, solve,
 };
 use linear::InfoFactor;
 use tree::BayesTree;
@@ -266,22 +272,16 @@ impl Isam2Backend {
         }
         let key = |v: Var| Key(self.ids.get(&v).map_or(u64::MAX, |&i| i as u64));
         let factor = state.entry.build(key, true);
-        let linear = factor.linearize(&values);
-        let keys: Vec<usize> = linear.keys.iter().map(|k| k.0 as usize).collect();
-        let dims: Vec<usize> = keys.iter().map(|&i| self.dims[i]).collect();
-        let a = DMatrix::from(linear.a.mat().clone_owned());
-        let b = DVector::from(linear.b.clone());
-        if a.iter().chain(b.iter()).any(|x| !x.is_finite()) {
-            return Err(BackendError::Solver(format!(
+        linearise(&factor, &values, &self.dims).ok_or_else(|| {
+            BackendError::Solver(format!(
                 "a factor on {:?} linearised to non-finite values",
                 state
                     .vars
                     .iter()
                     .map(|&i| self.vars[i].var)
                     .collect::<Vec<_>>()
-            )));
-        }
-        Ok(InfoFactor::from_jacobian(keys, dims, &a, &b))
+            ))
+        })
     }
 
     /// Twice GTSAM's error of every factor at the current estimate (robust factors by
@@ -298,6 +298,53 @@ impl Isam2Backend {
         }
         total
     }
+}
+
+/// A factrs factor linearised at `values` (keys: variable indices into `dims`), as an
+/// information factor; `None` if it linearised to something not finite.
+pub(crate) fn linearise(
+    factor: &::factrs::containers::Factor,
+    values: &Values,
+    dims: &[usize],
+) -> Option<InfoFactor> {
+    let linear = factor.linearize(values);
+    let keys: Vec<usize> = linear.keys.iter().map(|k| k.0 as usize).collect();
+    let key_dims: Vec<usize> = keys.iter().map(|&i| dims[i]).collect();
+    let a = DMatrix::from(linear.a.mat().clone_owned());
+    let b = DVector::from(linear.b.clone());
+    if a.iter().chain(b.iter()).any(|x| !x.is_finite()) {
+        return None;
+    }
+    Some(InfoFactor::from_jacobian(keys, key_dims, &a, &b))
+}
+
+/// The covariance of variable `target`'s step given the linearised `factors` (variable
+/// indices into `dims`): the whole system eliminated with `target` last (constrained
+/// minimum degree, module `ordering`), so that it ends in the root clique, and its block
+/// read from the Bayes tree ([`BayesTree::covariance`]). `Err(variable)` names a variable
+/// the factors leave unconstrained.
+pub(crate) fn covariance_of(
+    factors: &[InfoFactor],
+    dims: &[usize],
+    target: usize,
+) -> Result<DMatrix<f64>, usize> {
+    let vars: Vec<usize> = factors
+        .iter()
+        .flat_map(|f| f.keys.iter().copied())
+        .collect::<BTreeSet<usize>>()
+        .into_iter()
+        .collect();
+    if !vars.contains(&target) {
+        return Err(target);
+    }
+    let last: BTreeSet<usize> = [target].into();
+    let order =
+        ordering::constrained_min_degree(&vars, factors.iter().map(|f| f.keys.as_slice()), &last);
+    let inputs: Vec<&InfoFactor> = factors.iter().collect();
+    let eliminated = tree::eliminate(&order, &inputs, dims)?;
+    let mut bayes = BayesTree::default();
+    bayes.replace_top(&tree::Top::default(), eliminated);
+    bayes.covariance(target, dims).ok_or(target)
 }
 
 /// `θ ⊕ δ` with factrs's retractions (poses on the right, tangent rotation first; biases
@@ -445,6 +492,29 @@ impl Backend for Isam2Backend {
             .range(Var::Pose(0)..=Var::Pose(u64::MAX))
             .map(|(v, _)| super::scope::keyframe(*v))
             .collect()
+    }
+
+    /// From the Bayes tree as of the last update, at its linearisation point
+    /// (`BayesTree::covariance`), as GTSAM's `ISAM2::marginalCovariance`.
+    fn marginal_covariance(&self, key: u64) -> Result<PoseCovariance, BackendError> {
+        let var = Var::Pose(key);
+        let &i = self
+            .ids
+            .get(&var)
+            .ok_or(BackendError::MissingVariable(var))?;
+        if !self.tree.contains(i) {
+            return Err(BackendError::Invalid(format!(
+                "no marginal of pose {key}: no update has taken it yet"
+            )));
+        }
+        let cov = self.tree.covariance(i, &self.dims).ok_or_else(|| {
+            BackendError::Solver(format!("the Bayes tree has no marginal of pose {key}"))
+        })?;
+        let world_from_body = self.pose(key).ok_or(BackendError::MissingVariable(var))?;
+        Ok(PoseCovariance {
+            tangent: Matrix6::from_fn(|r, c| cov[(r, c)]),
+            world_from_body,
+        })
     }
 
     fn pose(&self, key: u64) -> Option<Isometry3<f64>> {

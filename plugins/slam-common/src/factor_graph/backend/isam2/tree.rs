@@ -10,9 +10,9 @@
 //! of its first-eliminated separator variable, so every separator lies on the path to
 //! the root (the running intersection property).
 
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 
 use super::linear::{self, Conditional, InfoFactor};
 
@@ -208,6 +208,95 @@ impl BayesTree {
             }
             stack.extend(clique.children.iter().rev().copied());
         }
+    }
+}
+
+impl BayesTree {
+    /// The covariance of variable `v`'s step (its marginal at the linearisation point),
+    /// `dims` giving every variable's dimension; `None` if `v` is not in the tree.
+    ///
+    /// Top-down along the path from the root to `v`'s clique, as GTSAM's
+    /// `BayesTree::marginalFactor` does (covariances from the square-root information
+    /// factor: Kaess and Dellaert, "Covariance recovery from a square root information
+    /// matrix for data association", Robotics and Autonomous Systems 57(12), 2009): a clique's
+    /// conditional `R·δ_f + S·δ_s = d` with unit noise makes its frontals, given the
+    /// separator, `N(R⁻¹(d − S·δ_s), (RᵀR)⁻¹)`; with the separator's covariance `Σ_s` (read
+    /// from the joint of the parent's frontals and separator, which hold it by the running
+    /// intersection property) the joint is `Σ_f = R⁻¹(I + S·Σ_s·Sᵀ)R⁻ᵀ`,
+    /// `Σ_fs = −R⁻¹·S·Σ_s`. Each step costs the clique's size cubed; the path is short for
+    /// the newest variables, which iSAM2 keeps near the root.
+    pub(crate) fn covariance(&self, v: usize, dims: &[usize]) -> Option<DMatrix<f64>> {
+        let mut path = Vec::new();
+        let mut at = self.of_var.get(v).copied().unwrap_or(NONE);
+        while at != NONE {
+            path.push(at);
+            at = self.clique(at)?.parent;
+        }
+        path.reverse();
+        // The joint covariance of the previous clique's frontals and separator.
+        let mut vars: Vec<usize> = Vec::new();
+        let mut joint = DMatrix::zeros(0, 0);
+        for id in path {
+            let c = self.clique(id)?;
+            // Where each separator variable's block starts in `joint`, and its width.
+            let mut starts = BTreeMap::new();
+            let mut n = 0;
+            for &u in &vars {
+                starts.insert(u, n);
+                n += dims[u];
+            }
+            let sep_at: Vec<(usize, usize)> = c
+                .sep
+                .iter()
+                .map(|u| starts.get(u).map(|&s| (s, dims[*u])))
+                .collect::<Option<_>>()?;
+            let sep_dim: usize = sep_at.iter().map(|(_, d)| d).sum();
+            let mut sigma_s = DMatrix::zeros(sep_dim, sep_dim);
+            let mut row = 0;
+            for &(r0, rd) in &sep_at {
+                let mut col = 0;
+                for &(c0, cd) in &sep_at {
+                    sigma_s
+                        .view_mut((row, col), (rd, cd))
+                        .copy_from(&joint.view((r0, c0), (rd, cd)));
+                    col += cd;
+                }
+                row += rd;
+            }
+            let r = &c.conditional.r;
+            let f = r.nrows();
+            let mut r_inv = DMatrix::identity(f, f);
+            if !r.solve_upper_triangular_mut(&mut r_inv) {
+                return None;
+            }
+            // R⁻¹·S·Σ_s, then Σ_f = R⁻¹R⁻ᵀ + (R⁻¹S)·Σ_s·(R⁻¹S)ᵀ.
+            let rs = &r_inv * &c.conditional.s;
+            let rs_sigma = &rs * &sigma_s;
+            let sigma_f = &r_inv * r_inv.transpose() + &rs_sigma * rs.transpose();
+            let mut next = DMatrix::zeros(f + sep_dim, f + sep_dim);
+            next.view_mut((0, 0), (f, f)).copy_from(&sigma_f);
+            if sep_dim > 0 {
+                let cross = -rs_sigma;
+                next.view_mut((0, f), (f, sep_dim)).copy_from(&cross);
+                next.view_mut((f, 0), (sep_dim, f))
+                    .copy_from(&cross.transpose());
+                next.view_mut((f, f), (sep_dim, sep_dim))
+                    .copy_from(&sigma_s);
+            }
+            vars = c.frontals.iter().chain(&c.sep).copied().collect();
+            joint = next;
+        }
+        let mut start = 0;
+        for &u in &vars {
+            if u == v {
+                let d = dims[u];
+                let block = joint.view((start, start), (d, d)).into_owned();
+                // Symmetric by construction up to rounding.
+                return Some((block.transpose() + block) * 0.5);
+            }
+            start += dims[u];
+        }
+        None
     }
 }
 
