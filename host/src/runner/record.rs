@@ -311,7 +311,7 @@ mod tests {
         }
         assert_eq!(
             sensor_names(SensorSet::ALL),
-            "gt,imu,odom,lidar,scan2d,rgbd"
+            "gt,imu,odom,lidar,scan2d,rgbd,gnss"
         );
         assert_eq!(sensor_names(set), "gt,rgbd");
     }
