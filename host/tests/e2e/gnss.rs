@@ -90,7 +90,11 @@ fn the_ekf_with_rtk_holds_where_dead_reckoning_drifts() {
     );
     // Fixed RTK is 8.5 mm per horizontal axis (1.2 cm RMS in the plane); the antenna 1.7 m
     // up turns the AHRS's 0.5° roll and pitch error into 1.5 cm more: 3 cm.
-    assert!(late[0] < 0.03, "ekf with RTK: {:.3} m horizontally", late[0]);
+    assert!(
+        late[0] < 0.03,
+        "ekf with RTK: {:.3} m horizontally",
+        late[0]
+    );
     assert!(
         late[0] < 0.25 * late[1],
         "ekf horizontally with RTK {:.3} m vs without {:.3} m",
