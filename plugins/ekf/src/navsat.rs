@@ -20,11 +20,14 @@
 //!    base's current attitude, measures the base's x and y (and z outside `two_d_mode`);
 //!    the fix's covariance rotated into odom is the measurement's.
 //!
+//! Both steps are `slam_common::gnss`'s, which the SLAM plugins share.
+//!
 //! navsat_transform needs an absolute heading. Without one (an IMU that reports no
 //! orientation, and `use_odometry_yaw` false) the plugin waits, and if the rig's IMU
 //! cannot report one, never fuses GNSS (the system says so once, [`crate::system`]).
 
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector3};
+use slam_common::gnss::{Fix, body_in_frame, frame_from_enu};
 
 use crate::measurement::{Measurement, Source};
 use crate::state::{StateVector, X, Y, YAW, Z};
@@ -37,10 +40,6 @@ pub struct NavSat {
     two_d_mode: bool,
     threshold: f64,
     odom_from_enu: Option<Isometry3<f64>>,
-}
-
-fn yaw_only(q: &UnitQuaternion<f64>) -> f64 {
-    q.euler_angles().2
 }
 
 impl NavSat {
@@ -67,16 +66,13 @@ impl NavSat {
         enu_r_base: &UnitQuaternion<f64>,
         state: &StateVector,
     ) {
-        let base_enu = antenna_enu - enu_r_base * self.lever_arm;
-        let enu_from_base = Isometry3::from_parts(
-            Translation3::from(base_enu),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_only(enu_r_base)),
-        );
-        let odom_from_base = Isometry3::from_parts(
-            Translation3::new(state[X], state[Y], state[Z]),
-            UnitQuaternion::from_euler_angles(0.0, 0.0, state[YAW]),
-        );
-        self.odom_from_enu = Some(odom_from_base * enu_from_base.inverse());
+        self.odom_from_enu = Some(frame_from_enu(
+            &Vector3::new(state[X], state[Y], state[Z]),
+            state[YAW],
+            enu_r_base,
+            &self.lever_arm,
+            antenna_enu,
+        ));
     }
 
     /// The fix as a measurement of the base's position (navsat_transform's
@@ -90,10 +86,13 @@ impl NavSat {
         odom_r_base: &UnitQuaternion<f64>,
     ) -> Option<Measurement> {
         let odom_from_enu = self.odom_from_enu?;
-        let antenna_odom = odom_from_enu * Point3::from(*antenna_enu);
-        let base_odom = antenna_odom.coords - odom_r_base * self.lever_arm;
-        let r = odom_from_enu.rotation.to_rotation_matrix().into_inner();
-        let covariance = r * covariance_enu * r.transpose();
+        let fix = Fix {
+            stamp_ns,
+            position_enu_m: *antenna_enu,
+            covariance_enu_m2: *covariance_enu,
+        };
+        let (base_odom, covariance) =
+            body_in_frame(&odom_from_enu, &fix, odom_r_base, &self.lever_arm);
         let axes = if self.two_d_mode { 2 } else { 3 };
         let mut m = Measurement::new(stamp_ns, Source::Gnss, self.threshold);
         for a in 0..axes {
@@ -113,6 +112,7 @@ impl NavSat {
 mod tests {
     use super::*;
     use crate::state::ROLL;
+    use nalgebra::Translation3;
 
     /// A robot at (20, -8) in ENU heading 0.6 rad, whose filter believes it is at (1, 2)
     /// heading 0.5 rad in odom: a fix there, with its antenna behind and above the base,

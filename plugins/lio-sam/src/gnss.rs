@@ -45,8 +45,10 @@
 
 use std::collections::VecDeque;
 
-use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Vector3};
 use plugin_api::{Event, EventKind, Gnss as GnssMessage};
+pub use slam_common::gnss::{Fix, Orientations, yaw};
+use slam_common::gnss::{body_in_frame, frame_from_enu};
 
 use crate::config::GpsConfig;
 use crate::motion::interpolate;
@@ -59,18 +61,6 @@ const SPACING_M: f64 = 5.0;
 const OWN_Z_VARIANCE_M2: f64 = 0.01;
 /// Every variance is floored at this (`max(noise, 1.0f)`), m².
 const VARIANCE_FLOOR_M2: f64 = 1.0;
-/// The IMU's orientation is taken from the message nearest the fix, at most this far.
-const ORIENTATION_GAP_NS: i64 = 50_000_000;
-/// IMU orientations kept, s.
-const ORIENTATION_HISTORY_NS: i64 = 2_000_000_000;
-
-/// A usable fix as it arrived: the antenna's position and covariance in east-north-up.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Fix {
-    pub stamp_ns: i64,
-    pub position_enu_m: Vector3<f64>,
-    pub covariance_enu_m2: Matrix3<f64>,
-}
 
 /// A GPS factor for the new keyframe: the body's (IMU's) position in the map frame and
 /// its sigmas, m.
@@ -91,62 +81,6 @@ pub struct KeyframeState {
     pub first_and_last: Option<(Vector3<f64>, Vector3<f64>)>,
     /// The last keyframe's marginal position covariance in the map frame, m².
     pub last_covariance: Option<Matrix3<f64>>,
-}
-
-/// The heading about the vertical (the z-y-x yaw) of a rotation.
-pub fn yaw(r: &UnitQuaternion<f64>) -> f64 {
-    let m = r.to_rotation_matrix();
-    m[(1, 0)].atan2(m[(0, 0)])
-}
-
-/// navsat_transform's transform from the first fix: `map_from_enu`, a rotation about the
-/// vertical and a translation, from the estimate `map_from_imu` and the IMU's reported
-/// `enu_from_imu` at the fix's time, the antenna's lever arm in the IMU frame, and the
-/// fix's antenna position in east-north-up.
-pub fn map_from_enu(
-    map_from_imu: &Isometry3<f64>,
-    enu_from_imu: &UnitQuaternion<f64>,
-    imu_from_antenna: &Vector3<f64>,
-    antenna_enu: &Vector3<f64>,
-) -> Isometry3<f64> {
-    let rotation = UnitQuaternion::from_axis_angle(
-        &Vector3::z_axis(),
-        yaw(&map_from_imu.rotation) - yaw(enu_from_imu),
-    );
-    let antenna_map = map_from_imu * nalgebra::Point3::from(*imu_from_antenna);
-    Isometry3::from_parts(
-        Translation3::from(antenna_map.coords - rotation * antenna_enu),
-        rotation,
-    )
-}
-
-/// The IMU's reported orientations (`enu_from_imu`, the simulator's world being
-/// east-north-up) of the last seconds.
-#[derive(Debug, Clone, Default)]
-pub struct Orientations {
-    history: VecDeque<(i64, UnitQuaternion<f64>)>,
-}
-
-impl Orientations {
-    pub fn push(&mut self, stamp_ns: i64, enu_from_imu: UnitQuaternion<f64>) {
-        self.history.push_back((stamp_ns, enu_from_imu));
-        while self
-            .history
-            .front()
-            .is_some_and(|(t, _)| *t < stamp_ns - ORIENTATION_HISTORY_NS)
-        {
-            self.history.pop_front();
-        }
-    }
-
-    /// The reported orientation nearest `t_ns`, if one is close enough.
-    pub fn at(&self, t_ns: i64) -> Option<UnitQuaternion<f64>> {
-        self.history
-            .iter()
-            .min_by_key(|(t, _)| (t - t_ns).abs())
-            .filter(|(t, _)| (t - t_ns).abs() <= ORIENTATION_GAP_NS)
-            .map(|(_, q)| *q)
-    }
 }
 
 /// The GNSS side of the mapping: the queue of fixes, the alignment, and LIO-SAM's
@@ -242,8 +176,9 @@ impl Gnss {
                     interpolate(&a, &b, u)
                 }
             };
-            self.map_from_enu = Some(map_from_enu(
-                &map_from_imu,
+            self.map_from_enu = Some(frame_from_enu(
+                &map_from_imu.translation.vector,
+                yaw(&map_from_imu.rotation),
                 &enu_from_imu,
                 &self.imu_from_antenna,
                 &fix.position_enu_m,
@@ -285,8 +220,12 @@ impl Gnss {
             let Some(map_from_enu) = self.map_from_enu else {
                 continue;
             };
-            let r = map_from_enu.rotation.to_rotation_matrix();
-            let covariance = r.matrix() * fix.covariance_enu_m2 * r.matrix().transpose();
+            let (mut position, covariance) = body_in_frame(
+                &map_from_enu,
+                &fix,
+                &kf.map_from_imu.rotation,
+                &self.imu_from_antenna,
+            );
             let (noise_x, noise_y) = (covariance[(0, 0)], covariance[(1, 1)]);
             let gate = self.cfg.gps_cov_threshold_m2;
             if noise_x > gate || noise_y > gate {
@@ -300,8 +239,6 @@ impl Gnss {
                 ));
                 continue;
             }
-            let antenna = map_from_enu * nalgebra::Point3::from(fix.position_enu_m);
-            let mut position = antenna.coords - kf.map_from_imu.rotation * self.imu_from_antenna;
             let mut noise_z = covariance[(2, 2)];
             if !self.cfg.use_gps_elevation {
                 position.z = kf.map_from_imu.translation.z;
@@ -399,8 +336,9 @@ mod tests {
         let enu_from_imu = truth.inverse() * map_from_imu;
         let lever = Vector3::new(-0.2, 0.1, 1.1);
         let antenna_enu = enu_from_imu * nalgebra::Point3::from(lever);
-        let found = map_from_enu(
-            &map_from_imu,
+        let found = frame_from_enu(
+            &map_from_imu.translation.vector,
+            yaw(&map_from_imu.rotation),
             &enu_from_imu.rotation,
             &lever,
             &antenna_enu.coords,

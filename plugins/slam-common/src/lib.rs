@@ -8,9 +8,11 @@
 //!   trained [`place::Vocabulary`] (DBoW2), the M2DP lidar descriptor;
 //! - [`registration`]: k-d trees, voxel grids, 3D and 2D ICP;
 //! - [`maps`]: the 2D occupancy grid;
+//! - [`gnss`]: GNSS fixes carried into a system's frame (navsat_transform's alignment);
 //! - [`motion`]: IMU preintegration, line and plane fits, Gauss–Newton on SE(3).
 
 pub mod factor_graph;
+pub mod gnss;
 pub mod maps;
 pub mod motion;
 pub mod place;

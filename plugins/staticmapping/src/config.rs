@@ -20,6 +20,9 @@ pub struct Config {
     pub front_end: FrontEndConfig,
     pub submap: SubmapConfig,
     pub loop_closure: LoopConfig,
+    /// GNSS priors per submap (`isam_optimizer_options use_gps` and its `gps_factor_*`),
+    /// off by default as in `static_mapping_default.xml`.
+    pub gps: GpsConfig,
     /// The shared factor-graph backend. StaticMapping's iSAM2 relinearises every update at a
     /// threshold of 0.01 (`relinearizeThreshold`, `relinearizeSkip`).
     pub backend: BackendConfig,
@@ -43,6 +46,7 @@ impl Default for Config {
             front_end: FrontEndConfig::default(),
             submap: SubmapConfig::default(),
             loop_closure: LoopConfig::default(),
+            gps: GpsConfig::default(),
             backend: BackendConfig {
                 relinearize_threshold: 0.01,
                 relinearize_skip: 1,
@@ -239,6 +243,47 @@ impl Default for LoopConfig {
     }
 }
 
+/// GNSS priors per submap, StaticMapping's `isam_optimizer_options` (`IsamOptimizerOptions`
+/// in `back_end/isam_optimizer.h`, read in `builder/map_builder_options.cc`) under the same
+/// names; the method is in [`crate::gnss`]. The defaults are the header's:
+/// `static_mapping_default.xml` sets only `use_gps="false"`, and the original's
+/// `lidar_imu_gps_default.xml` runs `gps_factor_sample_step = 2` and
+/// `gps_factor_init_angle_rad = 1.5`.
+///
+/// Not carried over: `enable_extrinsic_calib` (a translation error of the tracking-to-GPS
+/// lever arm estimated in the graph, `GPS_CALIB_KEY`; the slam_common backends have no
+/// factor for it, and the rig's lever arm is exact here) and `loop_detector_setting
+/// use_gps` (loop candidates by GNSS distance).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GpsConfig {
+    /// `use_gps` (default `false`): ask for the GNSS receiver (the plugin's requirements
+    /// name it only then) and add a GNSS prior per submap. It needs an IMU that reports its
+    /// orientation (the rig's imu `reports_orientation = 1`), whose heading aligns the
+    /// fixes' east-north-up frame with the map ([`crate::gnss`] says why).
+    pub use_gps: bool,
+    /// `gps_factor_init_num` (25): submaps with a fix cached before any prior is added.
+    pub gps_factor_init_num: usize,
+    /// `gps_factor_init_angle_rad` (1.6): and the largest angle between any submap's x
+    /// axis and the first submap's must reach this, rad (`AnalyseAllFramePoseForMaxRotation`:
+    /// a turn).
+    pub gps_factor_init_angle_rad: f64,
+    /// `gps_factor_sample_step` (1): once started, a prior for every submap whose index is
+    /// a multiple of this (0 and 1: every submap).
+    pub gps_factor_sample_step: usize,
+}
+
+impl Default for GpsConfig {
+    fn default() -> Self {
+        Self {
+            use_gps: false,
+            gps_factor_init_num: 25,
+            gps_factor_init_angle_rad: 1.6,
+            gps_factor_sample_step: 1,
+        }
+    }
+}
+
 impl Parameters for Config {
     fn check(&self) -> Result<(), String> {
         let i = &self.input;
@@ -279,6 +324,12 @@ impl Parameters for Config {
             return Err(format!(
                 "icp.trim_ratio must be in (0, 1], got {}",
                 self.icp.trim_ratio
+            ));
+        }
+        let angle = self.gps.gps_factor_init_angle_rad;
+        if !(angle >= 0.0 && angle.is_finite()) {
+            return Err(format!(
+                "gps.gps_factor_init_angle_rad must be a non-negative number, got {angle}"
             ));
         }
         if self.loop_closure.candidates == 0 {
@@ -326,6 +377,11 @@ mod documented_file {
                 "accumulate_cloud_num",
             ),
             ("[submap]\nframe_count = 0\n", "frame_count"),
+            (
+                "[gps]\ngps_factor_init_angle_rad = -1.0\n",
+                "gps_factor_init_angle_rad",
+            ),
+            ("[gps]\nenabled = true\n", "enabled"),
         ] {
             let err = Config::from_toml(text).expect_err(text);
             assert!(err.contains(names), "{text}: {err}");

@@ -1,8 +1,9 @@
 //! The submap pose graph (StaticMapping's `IsamOptimizer`): a pose per submap, a prior of
 //! σ = 1e-6 on the first, and between factors of σ = 0.1 rad and 0.15 m for consecutive
-//! submaps (`frame_match_noise_model_`) and for loops (`loop_closure_noise_model_`).
+//! submaps (`frame_match_noise_model_`) and for loops (`loop_closure_noise_model_`); with
+//! GNSS, position priors of σ = 0.15 m (`gps_noise_model_`, [`crate::gnss`]).
 
-use nalgebra::{Isometry3, Vector6};
+use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, Profiled, Robust, Scope, Value, Var,
 };
@@ -89,6 +90,27 @@ impl SubmapGraph {
             })?;
         }
         self.backend.update(Scope::Full).map(|_| ())
+    }
+
+    /// Adds position priors (`submap`, the submap's origin in the graph's frame) of `sigma_m`
+    /// on every axis and updates with `scope`; nothing without priors.
+    pub fn add_positions(
+        &mut self,
+        priors: &[(usize, Vector3<f64>)],
+        sigma_m: f64,
+        scope: Scope,
+    ) -> Result<(), BackendError> {
+        if priors.is_empty() {
+            return Ok(());
+        }
+        for &(k, position) in priors {
+            self.backend.add(Factor::Position {
+                key: k as u64,
+                position,
+                sigmas: Vector3::repeat(sigma_m),
+            })?;
+        }
+        self.backend.update(scope).map(|_| ())
     }
 
     /// The current estimate of submap `k`.

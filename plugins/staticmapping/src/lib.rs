@@ -13,13 +13,17 @@
 //!    consecutive submaps and for loops ([`graph`]);
 //! 5. loops: M2DP descriptors of the submaps propose candidates, ICP verifies them, and only
 //!    edges that agree are added ([`loops`]);
-//! 6. the optimised submap poses are carried to every sweep.
+//! 6. GNSS (off by default, `[gps] use_gps`): a position prior per submap once enough
+//!    fixes and a turn are in, as StaticMapping's iSAM optimiser adds its ENU factors
+//!    ([`gnss`]);
+//! 7. the optimised submap poses are carried to every sweep.
 //!
 //! Outputs: the trajectory of every sweep, the whole map (voxel-filtered), loop-closure
 //! events with both submaps' stamps. Parameters: [`config::Config`].
 
 pub mod config;
 pub mod frontend;
+pub mod gnss;
 pub mod graph;
 pub mod icp;
 pub mod input;

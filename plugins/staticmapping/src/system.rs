@@ -2,8 +2,8 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, Imu, MapStart, Mode, Parameters, PluginError, PointCloud, Pose, PoseStatus,
-    Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
+    Event, Gnss as GnssMessage, Imu, MapStart, Mode, Parameters, PluginError, PointCloud, Pose,
+    PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -18,6 +18,7 @@ use slam_common::registration::voxel::downsample;
 
 use crate::config::{Config, DescriptorVariant};
 use crate::frontend::{self, Gyro};
+use crate::gnss::{GnssCounts, SubmapGnss};
 use crate::graph::SubmapGraph;
 use crate::input::{self, Sweep};
 use crate::loops::{LoopCloser, LoopCounts};
@@ -35,6 +36,9 @@ pub struct StaticMapping {
     gyro: Vec<Gyro>,
     /// Localisation mode (`vinebench localize`): online, sweep by sweep.
     localizing: Option<Box<Localizing>>,
+    /// GNSS priors per submap (`[gps] use_gps` and a receiver in the rig): the epochs,
+    /// the IMU's headings at the sweeps, and the original's gate (`gnss.rs`).
+    gnss: Option<SubmapGnss>,
 }
 
 /// A localisation run's state: the front end as odometry, the saved map's localiser, the
@@ -65,6 +69,12 @@ pub struct BuildReport {
     pub loops_accepted: usize,
     pub loop_edges_added: usize,
     pub loops_rejected: usize,
+    /// Submaps with a GNSS position at their stamp, priors added, the submap whose fix
+    /// aligned the fixes' frame and the one that opened the gate (`gnss::GnssCounts`).
+    pub gnss_submaps_with_fix: usize,
+    pub gnss_priors: usize,
+    pub gnss_aligned_at: Option<usize>,
+    pub gnss_opened_at: Option<usize>,
     pub front_end_s: f64,
     pub submaps_s: f64,
     pub m2dp_s: f64,
@@ -74,12 +84,13 @@ pub struct BuildReport {
 }
 
 impl BuildReport {
-    /// The input, the front end's counts, the loop counts and the stages' times; the
-    /// submaps' counts zero.
+    /// The input, the front end's counts, the loop and GNSS counts and the stages' times;
+    /// the submaps' counts zero.
     fn new(
         sweeps: &[Sweep],
         odometry: &frontend::Odometry,
         loops: &LoopCounts,
+        gnss: &GnssCounts,
         stages: &Stages,
         started: Instant,
     ) -> Self {
@@ -95,6 +106,10 @@ impl BuildReport {
             loops_accepted: loops.accepted,
             loop_edges_added: loops.edges_added,
             loops_rejected: loops.rejected,
+            gnss_submaps_with_fix: gnss.submaps_with_fix,
+            gnss_priors: gnss.priors,
+            gnss_aligned_at: gnss.aligned_at,
+            gnss_opened_at: gnss.opened_at,
             front_end_s: stages.total("front_end"),
             submaps_s: stages.total("submaps"),
             m2dp_s: stages.total("m2dp"),
@@ -126,8 +141,9 @@ impl StaticMapping {
 
     /// StaticMapping's offline build (`docs/systems/staticmapping.md`): front-end odometry
     /// over every sweep, keyframes grouped into submaps, an M2DP descriptor per submap, then
-    /// the pose graph, each submap linked to the one before by ICP and its loops detected,
-    /// verified and added; the trajectory and map from the optimised submaps.
+    /// the pose graph, each submap linked to the one before by ICP, its loops detected,
+    /// verified and added, then its GNSS prior if the gate lets one through (`gnss.rs`);
+    /// the trajectory and map from the optimised submaps.
     pub fn build(&mut self) -> Result<(SlamOutput, BuildReport), PluginError> {
         let started = Instant::now();
         let cfg = &self.cfg;
@@ -145,6 +161,13 @@ impl StaticMapping {
         stages
             .time("back_end", || graph.add_first(submaps[0].odometry_pose))
             .map_err(backend_error)?;
+        if let Some(g) = &mut self.gnss {
+            stages
+                .time("back_end", || {
+                    g.add_submap(0, submaps[0].stamp_ns, &mut graph)
+                })
+                .map_err(backend_error)?;
+        }
         let mut loops = LoopCloser::new(
             &cfg.loop_closure,
             &cfg.icp,
@@ -164,12 +187,34 @@ impl StaticMapping {
             if cfg.loop_closure.enabled {
                 loops.close(i, &mut graph, &mut stages)?;
             }
+            if let Some(g) = &mut self.gnss {
+                stages
+                    .time("back_end", || {
+                        g.add_submap(i, submaps[i].stamp_ns, &mut graph)
+                    })
+                    .map_err(backend_error)?;
+            }
         }
-        let output = self.output(&odometry, &submaps, &graph, loops.events);
+        let mut events = loops.events;
+        let gnss_counts = match &mut self.gnss {
+            Some(g) => {
+                events.append(&mut g.events);
+                g.counts
+            }
+            None => GnssCounts::default(),
+        };
+        let output = self.output(&odometry, &submaps, &graph, events);
         let report = BuildReport {
             submaps: submaps.len(),
             submap_matches_accepted: matches_accepted,
-            ..BuildReport::new(&self.sweeps, &odometry, &loops.counts, &stages, started)
+            ..BuildReport::new(
+                &self.sweeps,
+                &odometry,
+                &loops.counts,
+                &gnss_counts,
+                &stages,
+                started,
+            )
         };
         Ok((output, report))
     }
@@ -273,6 +318,16 @@ impl SlamSystem for StaticMapping {
         }
     }
 
+    /// The GNSS receiver too when `[gps] use_gps`.
+    fn requirements_for(config_toml: &str) -> Result<Requirements, PluginError> {
+        let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
+        let mut requirements = Self::requirements();
+        if cfg.gps.use_gps {
+            requirements.sensors.push(SensorKind::Gnss);
+        }
+        Ok(requirements)
+    }
+
     /// Localisation in a map a mapping run saved (its optimised submaps): the front end
     /// runs online as odometry, and each sweep's kept points are registered to the saved
     /// submaps (`slam_common::maps::localizer`: Scan Context search, ICP verification).
@@ -288,6 +343,8 @@ impl SlamSystem for StaticMapping {
         }
         let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
         let mut system = Self::new(config_toml, rig)?;
+        // The saved map is the reference: no GNSS prior moves it.
+        system.gnss = None;
         let cfg = &system.cfg;
         let guess = start
             .initial_guess
@@ -323,10 +380,36 @@ impl SlamSystem for StaticMapping {
             return Err(PluginError::new("the lidar's rate must be positive"));
         }
         let base_from_lidar = lidar.base_from_sensor();
-        let imu_from_lidar = rig
-            .first(SensorKind::Imu)
+        let imu = rig.first(SensorKind::Imu);
+        let imu_from_lidar = imu
             .map(|imu| (imu.base_from_sensor().inverse() * base_from_lidar).rotation)
             .unwrap_or_else(UnitQuaternion::identity);
+        let gnss = match (cfg.gps.use_gps, rig.first(SensorKind::Gnss)) {
+            (false, _) => None,
+            (true, None) => {
+                eprintln!(
+                    "staticmapping: [gps] use_gps, but the world has no GNSS receiver: no GNSS priors"
+                );
+                None
+            }
+            (true, Some(receiver)) => {
+                if imu.and_then(|imu| imu.intrinsics.get("reports_orientation")) != Some(&1.0) {
+                    return Err(PluginError::new(
+                        "staticmapping: [gps] use_gps needs the IMU's orientation (the world's \
+                         [sensors.imu] reports_orientation = true): its heading aligns the \
+                         fixes' east-north-up frame with the map",
+                    ));
+                }
+                let lidar_from_antenna = (base_from_lidar.inverse() * receiver.base_from_sensor())
+                    .translation
+                    .vector;
+                Some(SubmapGnss::new(
+                    cfg.gps.clone(),
+                    lidar_from_antenna,
+                    imu_from_lidar,
+                ))
+            }
+        };
         Ok(Self {
             rng: ChaCha8Rng::seed_from_u64(cfg.seed),
             sweep_ns: (1e9 / lidar.rate_hz).round() as i64,
@@ -335,6 +418,7 @@ impl SlamSystem for StaticMapping {
             sweeps: Vec::new(),
             gyro: Vec::new(),
             localizing: None,
+            gnss,
             cfg,
         })
     }
@@ -346,12 +430,27 @@ impl SlamSystem for StaticMapping {
                 rate_rps: Vector3::from(imu.gyro_rps),
             });
         }
+        if let (Some(g), Some(q)) = (&mut self.gnss, imu.orientation()) {
+            g.orientation(imu.stamp_ns, q);
+        }
+        Ok(None)
+    }
+
+    /// Keeps the epoch for the submaps' GNSS priors; refuses one that cannot be used with
+    /// a `gnss_rejected` event (never an error). Ignored without `[gps] use_gps`.
+    fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
+        if let Some(g) = &mut self.gnss {
+            g.push(gnss);
+        }
         Ok(None)
     }
 
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
         let sweep = input::filter(cloud.stamp_ns, cloud.points, &self.cfg.input, &mut self.rng);
         let Some(l) = &mut self.localizing else {
+            if let Some(g) = &mut self.gnss {
+                g.sweep(sweep.stamp_ns);
+            }
             self.sweeps.push(sweep);
             return Ok(None);
         };
@@ -395,6 +494,16 @@ impl SlamSystem for StaticMapping {
             });
         }
         let (output, report) = self.build()?;
+        if self.gnss.is_some() {
+            eprintln!(
+                "staticmapping: {} GNSS priors ({} submaps with a fix; aligned at submap {:?}, \
+                 gate opened at submap {:?})",
+                report.gnss_priors,
+                report.gnss_submaps_with_fix,
+                report.gnss_aligned_at,
+                report.gnss_opened_at
+            );
+        }
         if let Some(path) = &self.cfg.timing_json {
             let text = serde_json::to_string_pretty(&report)
                 .map_err(|e| PluginError::new(format!("timing_json: {e}")))?;
@@ -402,5 +511,193 @@ impl SlamSystem for StaticMapping {
                 .map_err(|e| PluginError::new(format!("timing_json {}: {e}", path.display())))?;
         }
         Ok(output)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use plugin_api::{EventKind, GnssStatus, LidarPoint, SensorSpec};
+
+    use super::*;
+
+    const MS: i64 = 1_000_000;
+    const GPS_ON: &str = "[gps]\nuse_gps = true\n";
+
+    fn sensor(kind: SensorKind, xyz: [f64; 3], xyzw: [f64; 4], orientation: bool) -> SensorSpec {
+        SensorSpec {
+            name: kind.name().into(),
+            kind,
+            rate_hz: 10.0,
+            base_from_sensor_xyz: xyz,
+            base_from_sensor_xyzw: xyzw,
+            intrinsics: [(
+                "reports_orientation".to_string(),
+                f64::from(u8::from(orientation)),
+            )]
+            .into_iter()
+            .collect(),
+            noise: Default::default(),
+        }
+    }
+
+    /// A lidar yawed 90° on the base, an IMU, and a receiver if `receiver`.
+    fn rig(orientation: bool, receiver: bool) -> Rig {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut sensors = vec![
+            sensor(SensorKind::Lidar, [0.5, 0.0, 1.0], [0.0, 0.0, h, h], false),
+            sensor(
+                SensorKind::Imu,
+                [0.0, 0.0, 0.6],
+                [0.0, 0.0, 0.0, 1.0],
+                orientation,
+            ),
+        ];
+        if receiver {
+            sensors.push(sensor(
+                SensorKind::Gnss,
+                [-0.2, 0.0, 1.7],
+                [0.0, 0.0, 0.0, 1.0],
+                false,
+            ));
+        }
+        Rig { sensors }
+    }
+
+    fn epoch(stamp_ns: i64, status: GnssStatus, enu: [f64; 3], variance: f64) -> GnssMessage {
+        GnssMessage {
+            stamp_ns,
+            status,
+            satellites: 12,
+            position_enu_m: enu,
+            covariance_enu_m2: [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance],
+            latitude_deg: 52.0,
+            longitude_deg: 5.0,
+            altitude_m: 40.0,
+            hdop: 0.9,
+        }
+    }
+
+    #[test]
+    fn the_receiver_is_asked_for_only_with_use_gps() {
+        // Guards requirements_for: GNSS joins the sensors with `[gps] use_gps` only, and
+        // the original's names parse while others are refused.
+        let off = StaticMapping::requirements_for("").expect("defaults");
+        assert_eq!(off, StaticMapping::requirements());
+        assert!(!off.sensors.contains(&SensorKind::Gnss));
+        let on = StaticMapping::requirements_for(
+            "[gps]\nuse_gps = true\ngps_factor_init_num = 10\ngps_factor_sample_step = 2\n\
+             gps_factor_init_angle_rad = 1.5\n",
+        )
+        .expect("gps");
+        assert!(on.sensors.contains(&SensorKind::Gnss));
+        assert!(on.sensors.contains(&SensorKind::Lidar) && on.sensors.contains(&SensorKind::Imu));
+        assert_eq!((on.mode, on.can_localize), (Mode::Offline, true));
+        assert!(StaticMapping::requirements_for("[gps]\nenabled = true\n").is_err());
+    }
+
+    #[test]
+    fn use_gps_needs_the_imus_heading_and_does_without_a_receiver() {
+        // Guards the set-up: the alignment needs the IMU's orientation (an error saying
+        // so), a world without a receiver leaves GNSS off, and the lever arm is the
+        // antenna's mount seen from the (yawed) lidar.
+        let err = StaticMapping::new(GPS_ON, &rig(false, true)).expect_err("no orientation");
+        assert!(err.0.contains("reports_orientation"), "{err}");
+        let without = StaticMapping::new(GPS_ON, &rig(true, false)).expect("no receiver");
+        assert!(without.gnss.is_none());
+        let off = StaticMapping::new("", &rig(false, true)).expect("gps off");
+        assert!(off.gnss.is_none());
+        let with = StaticMapping::new(GPS_ON, &rig(true, true)).expect("receiver");
+        let lever = with.gnss.as_ref().expect("gnss").lidar_from_antenna();
+        assert!(
+            (lever - Vector3::new(0.0, 0.7, 0.7)).norm() < 1e-12,
+            "{lever}"
+        );
+    }
+
+    /// A sweep of a box room 12 m across with a floor, seen from its middle.
+    fn room() -> Vec<LidarPoint> {
+        let mut points = Vec::new();
+        let mut push = |x: f64, y: f64, z: f64| {
+            points.push(LidarPoint {
+                x: x as f32,
+                y: y as f32,
+                z: z as f32,
+                intensity: 0.0,
+                time_s: 0.0,
+                ring: 0,
+            });
+        };
+        for i in 0..60 {
+            for j in 0..15 {
+                let u = -6.0 + 0.2 * f64::from(i);
+                let z = -1.0 + 0.25 * f64::from(j);
+                push(6.0, u, z);
+                push(-6.0, u, z);
+                push(u, 6.0, z);
+                push(u, -6.5, z);
+            }
+            for j in 0..60 {
+                push(-6.0 + 0.2 * f64::from(i), -6.0 + 0.2 * f64::from(j), -1.0);
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn broken_fixes_are_events_and_a_good_one_aligns_the_first_submap() {
+        // Guards on_gnss and the build: NaN, no fix and a zero covariance come out as
+        // gnss_rejected events, never an error or a panic; the fixes either side of the
+        // first sweep give its submap a position and the alignment; without `[gps]`
+        // fixes are ignored.
+        let run = |config: &str| {
+            let mut system = StaticMapping::new(config, &rig(true, true)).expect("system");
+            let points = room();
+            let imu = |stamp_ns: i64| Imu {
+                stamp_ns,
+                accel_mps2: [0.0, 0.0, 9.81],
+                gyro_rps: [0.0; 3],
+                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+            };
+            let gnss = |s: &mut StaticMapping, e: GnssMessage| s.on_gnss(&e).expect("on_gnss");
+            gnss(
+                &mut system,
+                epoch(950 * MS, GnssStatus::Fixed, [5.0, 5.0, 1.0], 1e-4),
+            );
+            for k in 0..=30 {
+                system.on_imu(&imu(900 * MS + 10 * k * MS)).expect("imu");
+            }
+            gnss(
+                &mut system,
+                epoch(1050 * MS, GnssStatus::Float, [5.0, 5.0, 1.0], 1e-2),
+            );
+            for stamp in [1000 * MS, 1100 * MS] {
+                let cloud = PointCloud {
+                    stamp_ns: stamp,
+                    sensor: "lidar",
+                    points: &points,
+                };
+                assert_eq!(system.on_point_cloud(&cloud), Ok(None));
+            }
+            let nan = epoch(1150 * MS, GnssStatus::Single, [f64::NAN, 1.0, 2.0], 1.0);
+            let no_fix = GnssMessage {
+                status: GnssStatus::NoFix,
+                ..nan
+            };
+            let flat = epoch(1170 * MS, GnssStatus::Fixed, [1.0, 2.0, 3.0], 0.0);
+            for e in [nan, no_fix, flat] {
+                gnss(&mut system, e);
+            }
+            system.build().expect("build")
+        };
+        let (output, report) = run(GPS_ON);
+        let kinds: Vec<EventKind> = output.events.iter().map(|e| e.kind).collect();
+        assert_eq!(kinds, vec![EventKind::GnssRejected; 3]);
+        assert_eq!(report.submaps, 1);
+        assert_eq!(report.gnss_submaps_with_fix, 1);
+        assert_eq!(report.gnss_aligned_at, Some(0));
+        assert_eq!((report.gnss_priors, report.gnss_opened_at), (0, None));
+        let (output, report) = run("");
+        assert!(output.events.is_empty());
+        assert_eq!(report.gnss_submaps_with_fix, 0);
     }
 }
