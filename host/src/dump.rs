@@ -212,7 +212,7 @@ impl Dump {
                               var_east_m2,var_north_m2,var_up_m2,latitude_deg,longitude_deg,\
                               altitude_m,hdop";
                 let w = open(&mut self.gnss, &self.tmp.join("gnss.csv"), Some(header))?;
-                let status = format!("{:?}", m.status).to_lowercase();
+                let status = m.status.name();
                 let p = m
                     .position_enu_m
                     .map_or(",,".to_owned(), |p| format!("{},{},{}", p.x, p.y, p.z));

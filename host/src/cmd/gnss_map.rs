@@ -73,11 +73,12 @@ impl Tally {
     }
 }
 
-const STATUSES: [(FixStatus, &str, &str); 4] = [
-    (FixStatus::Fixed, "fixed", "#1a9850"),
-    (FixStatus::Float, "float", "#fdae61"),
-    (FixStatus::Single, "single", "#d73027"),
-    (FixStatus::None, "none", "#000000"),
+/// The statuses best first, with their colours on the map.
+const STATUSES: [(FixStatus, &str); 4] = [
+    (FixStatus::Fixed, "#1a9850"),
+    (FixStatus::Float, "#fdae61"),
+    (FixStatus::Single, "#d73027"),
+    (FixStatus::None, "#000000"),
 ];
 
 pub fn run(args: &GnssMapArgs) -> anyhow::Result<()> {
@@ -219,8 +220,8 @@ fn draw(config: &SimConfig, stage: f64, track: &[(f64, f64, FixStatus)]) -> Stri
     for &(x, y, status) in track {
         let colour = STATUSES
             .iter()
-            .find(|(st, ..)| *st == status)
-            .map_or("#000", |(_, _, c)| c);
+            .find(|(st, _)| *st == status)
+            .map_or("#000", |(_, c)| c);
         let _ = writeln!(
             s,
             "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{colour}\"/>",
@@ -229,7 +230,8 @@ fn draw(config: &SimConfig, stage: f64, track: &[(f64, f64, FixStatus)]) -> Stri
         );
     }
     let mut legend = format!("growth stage {stage}:");
-    for (_, name, colour) in STATUSES {
+    for (status, colour) in STATUSES {
+        let name = status.name();
         let _ = write!(legend, " <tspan fill=\"{colour}\">● {name}</tspan>");
     }
     let _ = writeln!(

@@ -104,6 +104,9 @@ pub struct GnssMetrics {
     /// absent when no pose falls in it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_error_in_outage_m: Option<f64>,
+    /// The RMSE of the east and north errors alone (aligned as `ape`), m.
+    #[serde(default)]
+    pub horizontal_rmse_m: f64,
 }
 
 /// A similarity transform as `metrics.json` holds it: `p' = s R p + t`.

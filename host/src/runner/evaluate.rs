@@ -9,6 +9,7 @@
 use anyhow::Context as _;
 use eval::{Alignment, ApeOptions, Sim3, Trajectory};
 use plugin_api::EventKind;
+use sim::sensors::gnss::FixStatus;
 
 use crate::dataset::{JudgedLoop, RunResults};
 use crate::results::{ApeSeries, Joins, JudgedEvent, Metrics, RunFolder, Transform, files};
@@ -79,7 +80,7 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         drift,
         joins: Some(joins.counts()),
         localization: localization(run, &gt, &options)?,
-        gnss: gnss(run, &final_.pairs.stamps, &final_.errors)?,
+        gnss: gnss(run, &final_.pairs, &final_.errors)?,
     };
     run.write_metrics(&metrics)?;
     run.write_ape(&ApeSeries {
@@ -103,24 +104,24 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
 }
 
 /// The run's GNSS outages ([`crate::results::GnssMetrics`]) from its `gnss.csv`, with the
-/// APE of the poses at `stamps_s` (`errors_m`); `None` without the file.
+/// APE of the aligned `pairs` (`errors_m`); `None` without the file.
 fn gnss(
     run: &RunFolder,
-    stamps_s: &[f64],
+    pairs: &eval::PosePairs,
     errors_m: &[f64],
 ) -> anyhow::Result<Option<crate::results::GnssMetrics>> {
+    let stamps_s = &pairs.stamps;
     let path = run.path(files::GNSS);
     let text = match std::fs::read_to_string(&path) {
         Ok(text) => text,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(e).with_context(|| path.display().to_string()),
     };
-    const ORDER: [&str; 4] = ["none", "single", "float", "fixed"];
     let mut epochs = Vec::new();
     for (k, line) in text.lines().enumerate().skip(1) {
         let parsed = line
             .split_once(',')
-            .and_then(|(t, s)| Some((t.parse::<i64>().ok()?, ORDER.iter().position(|o| *o == s)?)));
+            .and_then(|(t, s)| Some((t.parse::<i64>().ok()?, FixStatus::from_name(s)?)));
         let Some(epoch) = parsed else {
             anyhow::bail!("{} line {}: not stamp_ns,status", path.display(), k + 1);
         };
@@ -155,12 +156,29 @@ fn gnss(
         .max_by(f64::total_cmp);
     Ok(Some(crate::results::GnssMetrics {
         epochs: epochs.len() as u64,
-        best_status: ORDER[best].to_owned(),
+        best_status: best.name().to_owned(),
         fraction_best: good.len() as f64 / epochs.len() as f64,
         longest_outage_start_s: from,
         longest_outage_s: to - from,
         worst_error_in_outage_m: worst,
+        horizontal_rmse_m: horizontal_rmse(pairs),
     }))
+}
+
+/// The RMSE of the aligned positions' east and north errors alone, m: what a GNSS-aided
+/// robot's navigation needs, apart from the height a 2D filter leaves at 0.
+fn horizontal_rmse(pairs: &eval::PosePairs) -> f64 {
+    let squares: f64 = pairs
+        .reference
+        .iter()
+        .zip(&pairs.estimate)
+        .map(|(r, e)| {
+            (r.translation.vector - e.translation.vector)
+                .xy()
+                .norm_squared()
+        })
+        .sum();
+    (squares / pairs.reference.len().max(1) as f64).sqrt()
 }
 
 /// A localisation run's judgement (`runner::localize`): its online poses and their statuses

@@ -269,7 +269,7 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     if !gnss_epochs.is_empty() {
         let mut text = String::from("stamp_ns,status\n");
         for (t, status) in &gnss_epochs {
-            text += &format!("{t},{}\n", format!("{status:?}").to_lowercase());
+            text += &format!("{t},{}\n", status.name());
         }
         std::fs::write(job.out_dir.join(files::GNSS), text)
             .with_context(|| job.out_dir.join(files::GNSS).display().to_string())?;

@@ -26,10 +26,45 @@
 //!   (position error = DOP × range error; open-sky multi-GNSS DOPs are about 1 or less):
 //!   `σ_h · max(HDOP, 1)` per horizontal axis, `σ_v · max(VDOP, 1)` vertically. The reported
 //!   covariance is those variances, as a receiver reports its own accuracy estimate.
+//! - **Reflections** (`reflections`, on by default; never under `open_sky`). Each tracked
+//!   satellite's signal reaches the antenna along a [`Path`] ([`receive`]): the direct ray,
+//!   and a reflection off a near-vertical surface (canopy wall, post, wire, fence panel),
+//!   looked for by a ray from the antenna towards the mirror direction (the satellite's
+//!   azimuth + 180°, the same elevation): if it meets a surface within
+//!   `reflection_range_m` and that point sees the satellite, the reflected signal arrives
+//!   with an extra path `2·d·cos(el)` for a reflector at horizontal distance `d` (the image
+//!   geometry of a vertical reflector: Groves, *Principles of GNSS, Inertial and Multisensor
+//!   Integrated Navigation Systems*, 2nd ed., 2013, on NLOS reception; Hsu, GPS Solutions
+//!   22:7, 2018, models the NLOS delay from the same distance and elevation). A satellite
+//!   whose direct ray is blocked but which is reflected is received non-line-of-sight
+//!   (NLOS): code and carrier both late by the whole extra path. A visible one with a
+//!   reflector carries multipath of relative amplitude `α` (`reflection_amplitude`) and
+//!   phase `θ = 2π·Δ/λ + π` (the geometry's, deterministic; `π` for a dielectric's
+//!   reflection): carrier error `λ/2π · atan2(α sin θ, 1 + α cos θ)`, at most `λ/4`
+//!   (Georgiadou & Kleusberg, manuscripta geodaetica 13:172, 1988); code error the
+//!   coherent early-minus-late DLL's lock point ([`dll_error_chips`]) with a narrow
+//!   correlator (van Dierendonck, Fenton & Ford, NAVIGATION 39(3), 1992), within its
+//!   multipath error envelope (Braasch, ch. 14 of Parkinson & Spilker, *Global Positioning
+//!   System: Theory and Applications* vol. I, 1996).
+//! - **Solution under reflections.** The range biases `b` of the satellites used move the
+//!   least-squares position by `Δx = (GᵀG)⁻¹Gᵀb` (the rows `[-e, 1]` of the DOPs):
+//!   single fixes with the code biases, RTK float and fixed with the carrier ones. NLOS
+//!   satellites count for a float solution but not for a fix: fixed needs
+//!   `rtk_min_satellites` line-of-sight ones with a PDOP under `rtk_max_pdop`, held for
+//!   `rtk_fix_after_s`, and its solution is theirs alone (partial ambiguity resolution
+//!   fixes the subset that validates, Teunissen, Joosten & Tiberius, ION NTM 1999; that an
+//!   NLOS satellite's ambiguity, biased by metres that change as the antenna moves, is not
+//!   in it is this model's assumption). The reported covariance stays the receiver's own
+//!   estimate above: it does not know it is fooled, so near a reflector the error exceeds
+//!   the σ it reports.
 //!
-//! What is not modelled yet: multipath and non-line-of-sight reception (a blocked satellite
-//! is lost, never received by a reflection), the antenna's phase-centre variation, and
-//! correlation between the axes.
+//! What is not modelled yet: more than one reflection per satellite, the reflector's true
+//! orientation (every surface met is taken as facing the satellite), its size and material
+//! (a post or wire, narrower than the first Fresnel zone, reflects less), diffraction and
+//! attenuation by foliage, the antenna's gain and polarisation pattern (which would weaken
+//! reflections further), a signal-strength threshold for tracking weak NLOS signals,
+//! multipath at an RTK base, the antenna's phase-centre variation, and correlation between
+//! the axes.
 
 use nalgebra::{Isometry3, Matrix4, Point3, Unit, UnitQuaternion, Vector3};
 use rand::Rng;
@@ -59,6 +94,185 @@ pub fn sky_visible(
 /// Half a sidereal day, seconds: a GPS satellite's orbital period.
 pub const GPS_ORBIT_S: f64 = 43_082.0;
 
+/// The speed of light, m/s (IS-GPS-200's value).
+const LIGHT_M_S: f64 = 299_792_458.0;
+
+/// GPS L1's carrier wavelength, m: c / 1575.42 MHz (IS-GPS-200): 0.190 m.
+pub const L1_WAVELENGTH_M: f64 = LIGHT_M_S / 1575.42e6;
+
+/// One chip of the C/A code, m: c / 1.023 Mchip/s (IS-GPS-200): 293 m.
+pub const CA_CHIP_M: f64 = LIGHT_M_S / 1.023e6;
+
+/// The distance along a unit `direction` from `origin` (world frame) to the first surface
+/// the caster holds, if one lies within `reach` m.
+pub fn first_hit(
+    caster: &dyn RayCaster,
+    origin: &Vector3<f64>,
+    direction: &Vector3<f64>,
+    reach: f64,
+) -> Option<f64> {
+    let o = Point3::from(origin.cast::<f32>());
+    let dir = direction.normalize().cast::<f32>();
+    caster
+        .cast(&o, &dir, 1e-3, reach as f32)
+        .map(|h| f64::from(h.t))
+}
+
+/// How a tracked satellite's signal reaches the antenna.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Path {
+    /// The direct ray alone.
+    Direct,
+    /// The direct ray and a reflection `delay_m` longer (multipath).
+    Multipath { delay_m: f64 },
+    /// A reflection alone, `delay_m` longer than the blocked direct ray (non-line-of-sight).
+    Nlos { delay_m: f64 },
+}
+
+/// Which measurement a solution rests on: the code (single point) or the carrier (RTK).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Observable {
+    Code,
+    Carrier,
+}
+
+/// A received satellite: its direction (east-north-up, unit) and how it arrives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reception {
+    pub direction: Vector3<f64>,
+    pub path: Path,
+}
+
+impl Reception {
+    /// Its range error, m, on `observable`, for a reflection of relative amplitude `alpha`
+    /// and a DLL of correlator spacing `spacing_chips`. NLOS: the whole extra path, on code
+    /// and carrier (the only signal is the reflected one). Multipath: the composite
+    /// signal's, with the reflection's phase `θ = 2π·Δ/λ + π` (its extra path in L1
+    /// wavelengths, and half a turn for a reflection off a dielectric, whose Fresnel
+    /// coefficient at normal incidence is negative): the carrier's
+    /// `λ/2π · atan2(α sin θ, 1 + α cos θ)` (Georgiadou & Kleusberg 1988), never beyond
+    /// `λ/4`; the code's, the DLL's lock point ([`dll_error_chips`]) with the reflection's
+    /// part in phase with the carrier the PLL tracks (the composite's phase `ψ`):
+    /// `a = α·cos(θ − ψ)/cos ψ = α(α + cos θ)/(1 + α cos θ)`, from `α` in phase (`θ = 0`)
+    /// to `−α` against it (`θ = π`), the two edges of the error envelope.
+    pub fn range_bias_m(&self, observable: Observable, alpha: f64, spacing_chips: f64) -> f64 {
+        match self.path {
+            Path::Direct => 0.0,
+            Path::Nlos { delay_m } => delay_m,
+            Path::Multipath { delay_m } => {
+                let theta =
+                    std::f64::consts::TAU * delay_m / L1_WAVELENGTH_M + std::f64::consts::PI;
+                let (sin, cos) = theta.sin_cos();
+                match observable {
+                    Observable::Carrier => {
+                        L1_WAVELENGTH_M / std::f64::consts::TAU
+                            * (alpha * sin).atan2(1.0 + alpha * cos)
+                    }
+                    Observable::Code => {
+                        let a = alpha * (alpha + cos) / (1.0 + alpha * cos);
+                        CA_CHIP_M * dll_error_chips(a, delay_m / CA_CHIP_M, spacing_chips)
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The autocorrelation of a spreading code at a lag of `x` chips (infinite bandwidth).
+fn code_correlation(x: f64) -> f64 {
+    (1.0 - x.abs()).max(0.0)
+}
+
+/// The tracking error, chips, of a coherent early-minus-late delay-lock loop with early and
+/// late correlators `spacing` chips apart, when a reflection of in-phase relative amplitude
+/// `a` (|a| < 1; negative against the direct signal) arrives `delay` chips after the
+/// direct one: the zero of `D(τ) = R(τ−s/2) − R(τ+s/2) + a[R(τ−δ−s/2) − R(τ−δ+s/2)]`
+/// nearest the direct signal's peak where `D` rises (the loop's stable lock point), `R` the
+/// code's triangular autocorrelation (Braasch 1996; van Dierendonck et al. 1992). For
+/// `δ < (1+a)s/2` it is `aδ/(1+a)`, then `a·s/2` until the reflection's correlation
+/// leaves the correlators, and zero past `1 + s/2` chips. `D` is piecewise linear, so the
+/// zero is found exactly between its corners.
+pub fn dll_error_chips(a: f64, delay: f64, spacing: f64) -> f64 {
+    let h = spacing / 2.0;
+    let d = |x: f64| {
+        code_correlation(x - h) - code_correlation(x + h)
+            + a * (code_correlation(x - delay - h) - code_correlation(x - delay + h))
+    };
+    let mut corners: Vec<f64> = [0.0, delay]
+        .iter()
+        .flat_map(|c| [-h, h].map(move |s| c + s))
+        .flat_map(|c| [c - 1.0, c, c + 1.0])
+        .collect();
+    corners.sort_by(f64::total_cmp);
+    corners.dedup();
+    let mut lock: Option<f64> = None;
+    for w in corners.windows(2) {
+        let (x0, x1) = (w[0], w[1]);
+        let (d0, d1) = (d(x0), d(x1));
+        if d0 <= 0.0 && d1 >= 0.0 && d1 > d0 {
+            let x = x0 - d0 * (x1 - x0) / (d1 - d0);
+            if lock.is_none_or(|l| x.abs() < l.abs()) {
+                lock = Some(x);
+            }
+        }
+    }
+    lock.unwrap_or(0.0)
+}
+
+/// How each satellite in `directions` (east-north-up, unit) reaches an antenna at
+/// `antenna`, those received in their order: `cast(origin, unit direction, reach)` is the
+/// distance to the first surface along that ray within `reach` ([`first_hit`] against the
+/// world). The direct ray is the antenna's towards the satellite ([`SKY_REACH_M`]); the
+/// reflection is looked for along the mirror direction of a vertical reflector facing the
+/// satellite (azimuth + 180°, the same elevation) within `range_m`, and counts if its
+/// point sees the satellite. The extra path via a reflection point at `t` along that ray
+/// is `t − t·(m·e) = 2·t·cos²(el) = 2·d·cos(el)`, `d` its horizontal distance.
+pub fn receive(
+    directions: &[Vector3<f64>],
+    antenna: &Vector3<f64>,
+    range_m: f64,
+    mut cast: impl FnMut(&Vector3<f64>, &Vector3<f64>, f64) -> Option<f64>,
+) -> Vec<Reception> {
+    let mut out = Vec::with_capacity(directions.len());
+    for e in directions {
+        let direct = cast(antenna, e, f64::from(SKY_REACH_M)).is_none();
+        let mirror = Vector3::new(-e.x, -e.y, e.z);
+        let reflected = cast(antenna, &mirror, range_m).filter(|&t| {
+            // From just before the surface, on the antenna's side.
+            let point = antenna + mirror * (t - (0.01f64).min(t / 2.0));
+            cast(&point, e, f64::from(SKY_REACH_M)).is_none()
+        });
+        let delay = |t: f64| t * (1.0 - mirror.dot(e));
+        let path = match (direct, reflected) {
+            (true, None) => Path::Direct,
+            (true, Some(t)) => Path::Multipath { delay_m: delay(t) },
+            (false, Some(t)) => Path::Nlos { delay_m: delay(t) },
+            (false, None) => continue,
+        };
+        out.push(Reception {
+            direction: *e,
+            path,
+        });
+    }
+    out
+}
+
+/// The position error, east-north-up, of the least-squares position-and-clock solution
+/// from satellites in `directions` whose ranges are too long by `biases` (m):
+/// `Δx = (GᵀG)⁻¹Gᵀb` with rows `[-e, 1]` (Misra & Enge §6.1); `None` with a singular
+/// geometry.
+pub fn position_error(directions: &[Vector3<f64>], biases: &[f64]) -> Option<Vector3<f64>> {
+    let mut normal = Matrix4::zeros();
+    let mut rhs = nalgebra::Vector4::zeros();
+    for (e, b) in directions.iter().zip(biases) {
+        let row = nalgebra::Vector4::new(-e.x, -e.y, -e.z, 1.0);
+        normal += row * row.transpose();
+        rhs += row * *b;
+    }
+    let x = normal.try_inverse()? * rhs;
+    Some(x.xyz())
+}
+
 /// What the receiver is.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -80,6 +294,26 @@ pub enum FixStatus {
     Single,
     Float,
     Fixed,
+}
+
+impl FixStatus {
+    /// Every status, worst first (their order).
+    pub const ALL: [FixStatus; 4] = [Self::None, Self::Single, Self::Float, Self::Fixed];
+
+    /// The status as files and tables name it (its serde name).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Single => "single",
+            Self::Float => "float",
+            Self::Fixed => "fixed",
+        }
+    }
+
+    /// The status named `name` ([`FixStatus::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
 }
 
 /// One-σ error of a status: per horizontal axis and vertical, metres, and its correlation
@@ -142,6 +376,28 @@ pub struct GnssConfig {
     /// under an open sky along the whole route (the study's "RTK always fixed" cell), not a
     /// place in this world.
     pub open_sky: bool,
+    /// Multipath and non-line-of-sight reception off the world's surfaces (module doc).
+    /// `false`: a blocked satellite is lost and a visible one exact, the fixes bit for bit
+    /// those of the model before reflections. Never under `open_sky`.
+    pub reflections: bool,
+    /// The farthest reflector, m along the mirror ray. A surface reflects specularly where
+    /// it covers the first Fresnel zone, of radius `√(λ·r)` at `r` from the antenna for a
+    /// source at infinity (ITU-R P.526, the first Fresnel ellipsoid); the block's largest
+    /// reflectors, a 1.7 m fence panel and a 1.9 m canopy wall, cover it out to
+    /// `1.7² / 0.19 = 15 m` (the smaller of the two). Posts and wires, far narrower than the
+    /// zone, would reflect much less than `α` at any range: the model takes every surface
+    /// met alike.
+    pub reflection_range_m: f64,
+    /// The reflection's amplitude relative to the direct signal, `α` in `[0, 1)`: the
+    /// Fresnel coefficient of wood (the posts and fence) at normal incidence at L1,
+    /// `|1 − √ε| / (1 + √ε)` with ITU-R P.2040-1's wood (Table 3: `ε' = 1.99`, `σ = 0.0047
+    /// f^1.0718` S/m, f in GHz): 0.17. The antenna's rejection of the reflection's flipped
+    /// polarisation would lower it. One amplitude for every surface (leaves and steel
+    /// wires too).
+    pub reflection_amplitude: f64,
+    /// Early-late correlator spacing of the code loop, chips: the narrow correlator's 0.1
+    /// (van Dierendonck, Fenton & Ford, NAVIGATION 39(3), 1992), against the classic 1.
+    pub correlator_spacing_chips: f64,
 }
 
 impl Default for GnssConfig {
@@ -158,6 +414,10 @@ impl Default for GnssConfig {
             rtk_fix_after_s: 10.0,
             datum: [53.268642038, -0.524509505881, 0.0],
             open_sky: false,
+            reflections: true,
+            reflection_range_m: 15.0,
+            reflection_amplitude: 0.17,
+            correlator_spacing_chips: 0.1,
             fixed: ErrorModel {
                 sigma_h_m: 0.0085,
                 sigma_v_m: 0.015,
@@ -245,6 +505,24 @@ impl GnssConfig {
                     .into(),
             );
         }
+        if !(self.reflection_range_m > 0.0 && self.reflection_range_m <= f64::from(SKY_REACH_M)) {
+            return Err(format!(
+                "sensors.gnss.reflection_range_m = {}: above 0, at most {SKY_REACH_M}",
+                self.reflection_range_m
+            ));
+        }
+        if !(0.0..1.0).contains(&self.reflection_amplitude) {
+            return Err(format!(
+                "sensors.gnss.reflection_amplitude = {}: from 0 to under 1",
+                self.reflection_amplitude
+            ));
+        }
+        if !(self.correlator_spacing_chips > 0.0 && self.correlator_spacing_chips <= 1.0) {
+            return Err(format!(
+                "sensors.gnss.correlator_spacing_chips = {}: above 0, at most 1",
+                self.correlator_spacing_chips
+            ));
+        }
         Ok(())
     }
 
@@ -305,6 +583,30 @@ impl Constellation {
         }
     }
 
+    /// Satellites standing still in these directions (east-north-up): a sky for tests and
+    /// tools.
+    pub fn standing(directions: &[Vector3<f64>]) -> Self {
+        let tracks = directions
+            .iter()
+            .map(|d| {
+                let start = d.normalize();
+                let other = if start.x.abs() < 0.9 {
+                    Vector3::x()
+                } else {
+                    Vector3::y()
+                };
+                Track {
+                    start,
+                    axis: Unit::new_normalize(start.cross(&other)),
+                }
+            })
+            .collect();
+        Self {
+            tracks,
+            rate_rps: 0.0,
+        }
+    }
+
     /// Every satellite's direction (east-north-up, unit) at `t_s`.
     pub fn directions(&self, t_s: f64) -> Vec<Vector3<f64>> {
         self.tracks
@@ -343,9 +645,10 @@ pub struct GnssFix {
     pub position_enu_m: Option<Vector3<f64>>,
     /// The reported variances east, north, up, m² (zero without a fix).
     pub variance_enu_m2: [f64; 3],
-    /// Satellites tracked above the mask and visible.
+    /// Satellites in the solution: those above the mask received, directly or (NLOS) by a
+    /// reflection; RTK fixed, those received directly.
     pub satellites: usize,
-    /// Dilutions of precision of the visible satellites (`None` under 4).
+    /// Dilutions of precision of the solution's satellites (`None` under 4).
     pub hdop: Option<f64>,
     pub vdop: Option<f64>,
     /// The same position as WGS-84 latitude, longitude (degrees) and ellipsoidal height
@@ -386,6 +689,11 @@ impl GnssReceiver {
     /// A receiver whose sky and errors are drawn from `rng` (the run's `gnss` stream).
     pub fn new(cfg: &GnssConfig, mut rng: SimRng) -> Self {
         let sky = Constellation::new(cfg.satellites, &mut rng);
+        Self::with_sky(cfg, sky, rng)
+    }
+
+    /// A receiver under `sky`, its errors drawn from `rng`.
+    pub fn with_sky(cfg: &GnssConfig, sky: Constellation, mut rng: SimRng) -> Self {
         let states = std::array::from_fn(|_| Vector3::from_fn(|_, _| gaussian(&mut rng)));
         Self {
             cfg: cfg.clone(),
@@ -412,20 +720,73 @@ impl GnssReceiver {
     }
 
     /// The epoch at `t_ns` of an antenna truly at `antenna_enu_m`, where `visible(direction)`
-    /// says whether a ray from the antenna reaches the sky that way. Epochs come in time
-    /// order.
+    /// says whether a ray from the antenna reaches the sky that way; no reflections (a
+    /// hidden satellite is lost). Epochs come in time order.
     pub fn measure(
         &mut self,
         t_ns: i64,
         antenna_enu_m: &Vector3<f64>,
         mut visible: impl FnMut(&Vector3<f64>) -> bool,
     ) -> GnssFix {
-        let seen: Vec<Vector3<f64>> = self
+        let received: Vec<Reception> = self
             .tracked(t_ns)
             .into_iter()
             .filter(|d| visible(d))
+            .map(|direction| Reception {
+                direction,
+                path: Path::Direct,
+            })
             .collect();
-        let geometry = dops(&seen);
+        self.solve(t_ns, antenna_enu_m, &received)
+    }
+
+    /// The epoch at `t_ns` of an antenna truly at `antenna_enu_m` among surfaces that both
+    /// hide and reflect satellites ([`receive`]; `cast` as there), whatever `reflections`
+    /// says. Epochs come in time order.
+    pub fn measure_reflecting(
+        &mut self,
+        t_ns: i64,
+        antenna_enu_m: &Vector3<f64>,
+        cast: impl FnMut(&Vector3<f64>, &Vector3<f64>, f64) -> Option<f64>,
+    ) -> GnssFix {
+        let received = receive(
+            &self.tracked(t_ns),
+            antenna_enu_m,
+            self.cfg.reflection_range_m,
+            cast,
+        );
+        self.solve(t_ns, antenna_enu_m, &received)
+    }
+
+    /// The epoch at `t_ns` of an antenna at `antenna_enu_m` among the surfaces `caster`
+    /// holds: with `reflections`, [`Self::measure_reflecting`]; without,
+    /// [`Self::measure`] with [`sky_visible`], as before reflections were modelled.
+    pub fn measure_among(
+        &mut self,
+        t_ns: i64,
+        antenna_enu_m: &Vector3<f64>,
+        caster: &dyn RayCaster,
+    ) -> GnssFix {
+        if self.cfg.reflections {
+            self.measure_reflecting(t_ns, antenna_enu_m, |o, d, reach| {
+                first_hit(caster, o, d, reach)
+            })
+        } else {
+            self.measure(t_ns, antenna_enu_m, |d| {
+                sky_visible(caster, antenna_enu_m, d)
+            })
+        }
+    }
+
+    /// The fix from the satellites `received` (in the tracked order).
+    fn solve(
+        &mut self,
+        t_ns: i64,
+        antenna_enu_m: &Vector3<f64>,
+        received: &[Reception],
+    ) -> GnssFix {
+        let all: Vec<Vector3<f64>> = received.iter().map(|r| r.direction).collect();
+        let geometry = dops(&all);
         // Advance every status's error to this epoch.
         let dt_s = self
             .last_ns
@@ -439,14 +800,30 @@ impl GnssReceiver {
             let draw = Vector3::from_fn(|_, _| gaussian(&mut self.rng));
             self.states[i] = self.states[i] * phi + draw * spread;
         }
+        // The line-of-sight satellites: all of them unless some arrive by a reflection alone.
+        let los: Vec<&Reception> = received
+            .iter()
+            .filter(|r| !matches!(r.path, Path::Nlos { .. }))
+            .collect();
+        let any_nlos = los.len() < received.len();
+        let los_geometry = if any_nlos {
+            dops(&los.iter().map(|r| r.direction).collect::<Vec<_>>())
+        } else {
+            geometry
+        };
+        let rtk_holds = |n: usize, g: Option<(f64, f64, f64)>| {
+            n >= self.cfg.rtk_min_satellites
+                && g.is_some_and(|(_, _, p)| p <= self.cfg.rtk_max_pdop)
+        };
         let status = match (self.cfg.profile, geometry) {
             (GnssProfile::None, _) | (_, None) => {
                 self.rtk_since_ns = None;
                 FixStatus::None
             }
             (GnssProfile::Consumer, Some(_)) => FixStatus::Single,
-            (GnssProfile::Rtk, Some((_, _, pdop))) => {
-                if seen.len() >= self.cfg.rtk_min_satellites && pdop <= self.cfg.rtk_max_pdop {
+            (GnssProfile::Rtk, Some(_)) => {
+                // Ambiguities resolve on line-of-sight satellites; NLOS ones keep it float.
+                if rtk_holds(los.len(), los_geometry) {
                     let since = *self.rtk_since_ns.get_or_insert(t_ns);
                     if (t_ns - since) as f64 * 1e-9 >= self.cfg.rtk_fix_after_s {
                         FixStatus::Fixed
@@ -455,20 +832,49 @@ impl GnssReceiver {
                     }
                 } else {
                     self.rtk_since_ns = None;
-                    FixStatus::Single
+                    if rtk_holds(received.len(), geometry) {
+                        FixStatus::Float
+                    } else {
+                        FixStatus::Single
+                    }
                 }
             }
         };
-        let (hdop, vdop) = geometry.map_or((None, None), |(h, v, _)| (Some(h), Some(v)));
+        // The solution's satellites: a fix's are the line-of-sight ones.
+        let (used, used_geometry): (Vec<&Reception>, _) = if status == FixStatus::Fixed {
+            (los, los_geometry)
+        } else {
+            (received.iter().collect(), geometry)
+        };
+        let (hdop, vdop) = used_geometry.map_or((None, None), |(h, v, _)| (Some(h), Some(v)));
+        // Reflections move the solution; a sky of direct rays alone leaves it as it was.
+        let observable = match status {
+            FixStatus::Single => Observable::Code,
+            _ => Observable::Carrier,
+        };
+        let bias = if used.iter().any(|r| r.path != Path::Direct) {
+            let directions: Vec<Vector3<f64>> = used.iter().map(|r| r.direction).collect();
+            let biases: Vec<f64> = used
+                .iter()
+                .map(|r| {
+                    r.range_bias_m(
+                        observable,
+                        self.cfg.reflection_amplitude,
+                        self.cfg.correlator_spacing_chips,
+                    )
+                })
+                .collect();
+            position_error(&directions, &biases)
+        } else {
+            None
+        };
         let (position_enu_m, variance_enu_m2) = match (self.cfg.error_model(status), slot(status)) {
             (Some(m), Some(i)) => {
                 let sh = m.sigma_h_m * hdop.unwrap_or(1.0).max(1.0);
                 let sv = m.sigma_v_m * vdop.unwrap_or(1.0).max(1.0);
                 let u = self.states[i];
-                (
-                    Some(antenna_enu_m + Vector3::new(sh * u.x, sh * u.y, sv * u.z)),
-                    [sh * sh, sh * sh, sv * sv],
-                )
+                let p = antenna_enu_m + Vector3::new(sh * u.x, sh * u.y, sv * u.z);
+                (Some(bias.map_or(p, |b| p + b)), [sh * sh, sh * sh, sv * sv])
             }
             _ => (None, [0.0; 3]),
         };
@@ -477,7 +883,7 @@ impl GnssReceiver {
             status,
             position_enu_m,
             variance_enu_m2,
-            satellites: seen.len(),
+            satellites: used.len(),
             hdop,
             vdop,
             geodetic: position_enu_m.map(|p| geodetic_from_enu(self.cfg.datum, &p)),
@@ -488,8 +894,7 @@ impl GnssReceiver {
 
 impl GnssReceiver {
     /// The epoch at `t_ns` of the antenna at `base_from_antenna` on the robot of `scene`,
-    /// the sky seen past the world's mesh ([`sky_visible`]); and the antenna's true
-    /// position.
+    /// among the world's mesh ([`Self::measure_among`]); and the antenna's true position.
     pub fn measure_scene(
         &mut self,
         scene: &Scene<'_>,
@@ -498,7 +903,7 @@ impl GnssReceiver {
     ) -> (GnssFix, Vector3<f64>) {
         let world_from_antenna = scene.trajectory.state(t_ns).world_from_base * base_from_antenna;
         let antenna = world_from_antenna.translation.vector;
-        let fix = self.measure(t_ns, &antenna, |d| sky_visible(scene.caster, &antenna, d));
+        let fix = self.measure_among(t_ns, &antenna, scene.caster);
         (fix, antenna)
     }
 }
@@ -775,6 +1180,445 @@ mod tests {
         assert!(sky_visible(&caster, &beside, &west_high));
     }
 
+    /// FNV-1a over every field of a fix, bit for bit.
+    fn digest(fixes: &[GnssFix]) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |x: u64| {
+            for b in x.to_le_bytes() {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for f in fixes {
+            eat(f.stamp_ns as u64);
+            eat(f.status as u64);
+            eat(f.satellites as u64);
+            for v in f.position_enu_m.map_or([f64::NAN; 3], |p| [p.x, p.y, p.z]) {
+                eat(v.to_bits());
+            }
+            for v in f.variance_enu_m2 {
+                eat(v.to_bits());
+            }
+            eat(f.hdop.map_or(u64::MAX, f64::to_bits));
+            eat(f.vdop.map_or(u64::MAX, f64::to_bits));
+            for v in f.geodetic.unwrap_or([f64::NAN; 3]) {
+                eat(v.to_bits());
+            }
+            eat(f.latency_ns as u64);
+        }
+        h
+    }
+
+    /// A lane between two walls 1.9 m high and 120 m long along x, 1.5 m either side of it
+    /// (two rows of canopy).
+    fn lane_walls() -> crate::raycast::BruteForce {
+        use crate::world::{Material, Mesh};
+        let mut mesh = Mesh::new();
+        for y in [-1.5, 1.5] {
+            let v: Vec<u32> = [[-60.0, 0.0], [60.0, 0.0], [60.0, 1.9], [-60.0, 1.9]]
+                .iter()
+                .map(|[x, z]| mesh.push_vertex(Point3::new(*x, y, *z)))
+                .collect();
+            mesh.push_triangle([v[0], v[1], v[2]], Material::Leaf);
+            mesh.push_triangle([v[0], v[2], v[3]], Material::Leaf);
+        }
+        crate::raycast::BruteForce::build(&mesh)
+    }
+
+    /// The fixes of an RTK and a consumer receiver (seed 7, `reflections` as given) driven
+    /// down that lane, the antenna 0.8 m up and 0.3 m off its centre, at 0.2 m/s for 200 s,
+    /// among the walls ([`GnssReceiver::measure_among`]).
+    fn lane_drive(caster: &crate::raycast::BruteForce, reflections: bool) -> Vec<GnssFix> {
+        let mut out = Vec::new();
+        for profile in [GnssProfile::Rtk, GnssProfile::Consumer] {
+            let cfg = GnssConfig {
+                profile,
+                reflections,
+                ..GnssConfig::default()
+            };
+            let mut rx = GnssReceiver::new(&cfg, crate::rng::stream(7, "gnss"));
+            for k in 0..1000 {
+                let t_s = k as f64 / 5.0;
+                let antenna = Vector3::new(-20.0 + 0.2 * t_s, 0.3, 0.8);
+                out.push(rx.measure_among((t_s * 1e9) as i64, &antenna, caster));
+            }
+        }
+        out
+    }
+
+    /// Without reflections the model's fixes are those it gave before reflections were
+    /// modelled, bit for bit: [`lane_drive`]'s digest as that version computed it (on
+    /// x86-64 Linux: the digest holds the platform's `sin`, `exp`, … to the last bit).
+    /// With them, the same drive differs: the walls reflect.
+    #[test]
+    fn without_reflections_the_fixes_are_unchanged() {
+        let walls = lane_walls();
+        let off = lane_drive(&walls, false);
+        assert_eq!(digest(&off), 0x03d5_b187_099b_06b9, "reflections off");
+        let on = lane_drive(&walls, true);
+        assert_ne!(digest(&on), digest(&off), "the walls reflect");
+    }
+
+    /// An antenna 1 m up beside a wall 2 m to its west (3 m high, 100 m long), under a
+    /// standing sky; `east` and `west` make the sky's low satellites.
+    fn beside_a_wall() -> (crate::raycast::BruteForce, Vec<Vector3<f64>>) {
+        use crate::world::{Material, Mesh};
+        let mut mesh = Mesh::new();
+        let v: Vec<u32> = [[-50.0, 0.0], [50.0, 0.0], [50.0, 3.0], [-50.0, 3.0]]
+            .iter()
+            .map(|[y, z]| mesh.push_vertex(Point3::new(-2.0, *y, *z)))
+            .collect();
+        mesh.push_triangle([v[0], v[1], v[2]], Material::Post);
+        mesh.push_triangle([v[0], v[2], v[3]], Material::Post);
+        let sky = vec![
+            sky_direction(270.0, 20.0), // west, low: behind the wall
+            sky_direction(90.0, 30.0),  // east: its mirror ray meets the wall
+            sky_direction(0.0, 60.0),
+            sky_direction(180.0, 45.0),
+            sky_direction(270.0, 75.0), // west, high: over the wall
+            sky_direction(20.0, 35.0),
+            sky_direction(160.0, 25.0),
+        ];
+        (crate::raycast::BruteForce::build(&mesh), sky)
+    }
+
+    /// A unit vector to the sky at this azimuth (degrees clockwise from north) and elevation.
+    fn sky_direction(azimuth_deg: f64, elevation_deg: f64) -> Vector3<f64> {
+        let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
+        Vector3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
+    }
+
+    /// The wall hides the low western satellite (nothing east of the antenna reflects it)
+    /// and reflects the eastern one, still in view: multipath with the extra path of a
+    /// vertical reflector 2 m away, `2·d·cos(el)`; every other satellite arrives directly
+    /// (the high western one passes over the wall; the others' mirror rays miss it).
+    #[test]
+    fn a_wall_beside_the_antenna_hides_one_satellite_and_reflects_another() {
+        let (wall, sky) = beside_a_wall();
+        let antenna = Vector3::new(0.0, 0.0, 1.0);
+        let got = receive(&sky, &antenna, 15.0, |o, d, r| first_hit(&wall, o, d, r));
+        assert_eq!(got.len(), sky.len() - 1, "{got:?}");
+        assert!(
+            got.iter().all(|r| r.direction != sky[0]),
+            "the west one is lost"
+        );
+        let east = got.iter().find(|r| r.direction == sky[1]).expect("east");
+        let Path::Multipath { delay_m } = east.path else {
+            panic!("{east:?}")
+        };
+        let expected = 2.0 * 2.0 * 30f64.to_radians().cos();
+        assert!(
+            (delay_m - expected).abs() < 1e-4,
+            "{delay_m} m, not {expected}"
+        );
+        assert!(
+            got.iter()
+                .filter(|r| r.direction != sky[1])
+                .all(|r| r.path == Path::Direct)
+        );
+        // Beyond the range, the same wall reflects nothing.
+        let far = receive(&sky, &antenna, 2.0, |o, d, r| first_hit(&wall, o, d, r));
+        assert!(far.iter().all(|r| r.path == Path::Direct), "{far:?}");
+    }
+
+    /// Two walls as a lane between rows: 1.9 m high, 1.2 m west and 1.8 m east of an
+    /// antenna 0.8 m up. A satellite low in the west is hidden by the west wall; the east
+    /// wall reflects it over the west one (NLOS, extra path `2 × 1.8 m × cos 20°`); the
+    /// others stand high enough to be seen over both and their mirror rays pass over both.
+    fn a_lane() -> (crate::raycast::BruteForce, Vec<Vector3<f64>>, Vector3<f64>) {
+        use crate::world::{Material, Mesh};
+        let mut mesh = Mesh::new();
+        for x in [-1.2, 1.8] {
+            let v: Vec<u32> = [[-50.0, 0.0], [50.0, 0.0], [50.0, 1.9], [-50.0, 1.9]]
+                .iter()
+                .map(|[y, z]| mesh.push_vertex(Point3::new(x, *y, *z)))
+                .collect();
+            mesh.push_triangle([v[0], v[1], v[2]], Material::Leaf);
+            mesh.push_triangle([v[0], v[2], v[3]], Material::Leaf);
+        }
+        let sky = vec![
+            sky_direction(270.0, 20.0), // west, low
+            sky_direction(0.0, 20.0),   // along the lane, both ways
+            sky_direction(180.0, 30.0),
+            sky_direction(90.0, 70.0),
+            sky_direction(280.0, 65.0),
+            sky_direction(45.0, 40.0),
+        ];
+        (
+            crate::raycast::BruteForce::build(&mesh),
+            sky,
+            Vector3::new(0.0, 0.0, 0.8),
+        )
+    }
+
+    /// A receiver under a standing `sky` whose process errors are zero: its position error
+    /// is the reflections' alone.
+    fn exact_receiver(profile: GnssProfile, sky: &[Vector3<f64>]) -> GnssReceiver {
+        let zero = ErrorModel {
+            sigma_h_m: 0.0,
+            sigma_v_m: 0.0,
+            tau_s: 1.0,
+        };
+        let cfg = GnssConfig {
+            profile,
+            fixed: zero,
+            float: zero,
+            single: zero,
+            consumer: zero,
+            ..GnssConfig::default()
+        };
+        GnssReceiver::with_sky(
+            &cfg,
+            Constellation::standing(sky),
+            crate::rng::stream(7, "gnss"),
+        )
+    }
+
+    /// The least-squares position error of satellites `directions` with range biases
+    /// `b`, by the pseudo-inverse of `G` (an SVD: not the normal equations the model uses).
+    fn least_squares_error(directions: &[Vector3<f64>], b: &[f64]) -> Vector3<f64> {
+        let g = nalgebra::DMatrix::from_fn(directions.len(), 4, |i, j| {
+            if j < 3 { -directions[i][j] } else { 1.0 }
+        });
+        let x =
+            g.pseudo_inverse(1e-12).expect("full rank") * nalgebra::DVector::from_column_slice(b);
+        Vector3::new(x[0], x[1], x[2])
+    }
+
+    /// The satellite hidden behind one row and reflected off the other arrives late by the
+    /// image geometry's extra path (3.38 m); a single-point fix moves by that bias through
+    /// the least squares, away from the satellite (east, by over a third of it). For RTK it
+    /// is the fifth satellite: float with it, never fixed (four in view), where without
+    /// reflections the receiver has four and a single fix.
+    #[test]
+    fn a_satellite_hidden_behind_one_row_is_received_off_the_other() {
+        let (lane, sky, antenna) = a_lane();
+        let cast = |o: &Vector3<f64>, d: &Vector3<f64>, r: f64| first_hit(&lane, o, d, r);
+        let got = receive(&sky, &antenna, 15.0, cast);
+        assert_eq!(got.len(), sky.len(), "{got:?}");
+        let expected = 2.0 * 1.8 * 20f64.to_radians().cos();
+        match got[0].path {
+            Path::Nlos { delay_m } => {
+                assert!(
+                    (delay_m - expected).abs() < 1e-4,
+                    "{delay_m} m, not {expected}"
+                )
+            }
+            other => panic!("west: {other:?}"),
+        }
+        assert!(got[1..].iter().all(|r| r.path == Path::Direct), "{got:?}");
+        let mut b = vec![0.0; sky.len()];
+        b[0] = expected;
+        let want = least_squares_error(&sky, &b);
+        // East, away from the western satellite, by decimetres to metres.
+        assert!(want.x > 0.3 * expected, "{want}");
+
+        let mut rx = exact_receiver(GnssProfile::Consumer, &sky);
+        let fix = rx.measure_reflecting(0, &antenna, cast);
+        assert_eq!((fix.status, fix.satellites), (FixStatus::Single, 6));
+        let err = fix.position_enu_m.expect("fix") - antenna;
+        assert!((err - want).norm() < 1e-4, "{err} against {want}");
+        // Without reflections: five satellites and no error.
+        let mut rx = exact_receiver(GnssProfile::Consumer, &sky);
+        let fix = rx.measure(0, &antenna, |d| sky_visible(&lane, &antenna, d));
+        assert_eq!(fix.satellites, 5);
+        assert!((fix.position_enu_m.expect("fix") - antenna).norm() < 1e-12);
+
+        // RTK with one satellite fewer in view (the one along the lane northwards gone):
+        // four in view and one NLOS.
+        let rtk_sky: Vec<_> = sky.iter().copied().filter(|d| *d != sky[1]).collect();
+        let mut rx = exact_receiver(GnssProfile::Rtk, &rtk_sky);
+        let mut plain = exact_receiver(GnssProfile::Rtk, &rtk_sky);
+        for k in 0..100 {
+            let t = k * 200_000_000;
+            let fix = rx.measure_reflecting(t, &antenna, cast);
+            assert_eq!((fix.status, fix.satellites), (FixStatus::Float, 5), "{k}");
+            // Float: the NLOS carrier is late by the whole extra path too.
+            let mut b = vec![0.0; rtk_sky.len()];
+            b[0] = expected;
+            let want = least_squares_error(&rtk_sky, &b);
+            let err = fix.position_enu_m.expect("fix") - antenna;
+            assert!((err - want).norm() < 1e-4, "{err} against {want}");
+            let fix = plain.measure(t, &antenna, |d| sky_visible(&lane, &antenna, d));
+            assert_eq!((fix.status, fix.satellites), (FixStatus::Single, 4), "{k}");
+        }
+    }
+
+    /// A fixed receiver beside the wall ([`beside_a_wall`]): the multipath satellite's
+    /// carrier error moves the fix by at most what `λ/4` on its range moves a least-squares
+    /// solution, and by exactly what its geometry gives.
+    #[test]
+    fn multipath_moves_a_fix_by_its_carrier_error() {
+        let (wall, sky) = beside_a_wall();
+        let antenna = Vector3::new(0.0, 0.0, 1.0);
+        let cast = |o: &Vector3<f64>, d: &Vector3<f64>, r: f64| first_hit(&wall, o, d, r);
+        let mut rx = exact_receiver(GnssProfile::Rtk, &sky);
+        let cfg = GnssConfig::default();
+        let mut fix = rx.measure_reflecting(0, &antenna, cast);
+        for k in 1..=60 {
+            fix = rx.measure_reflecting(k * 200_000_000, &antenna, cast);
+        }
+        assert_eq!((fix.status, fix.satellites), (FixStatus::Fixed, 6));
+        let seen: Vec<_> = sky.iter().copied().filter(|d| *d != sky[0]).collect();
+        let multipath = *receive(&sky, &antenna, cfg.reflection_range_m, cast)
+            .iter()
+            .find(|r| r.direction == sky[1])
+            .expect("east");
+        let carrier = multipath.range_bias_m(
+            Observable::Carrier,
+            cfg.reflection_amplitude,
+            cfg.correlator_spacing_chips,
+        );
+        let bound = L1_WAVELENGTH_M / std::f64::consts::TAU * cfg.reflection_amplitude.asin();
+        assert!(carrier.abs() <= bound + 1e-12 && bound < L1_WAVELENGTH_M / 4.0);
+        let b: Vec<f64> = seen
+            .iter()
+            .map(|d| if *d == sky[1] { carrier } else { 0.0 })
+            .collect();
+        let want = least_squares_error(&seen, &b);
+        let err = fix.position_enu_m.expect("fix") - antenna;
+        assert!((err - want).norm() < 1e-9, "{err} against {want}");
+        assert!(err.norm() > 0.0);
+        // A single fix there takes the code's error, larger.
+        let mut rx = exact_receiver(GnssProfile::Consumer, &sky);
+        let single = rx
+            .measure_reflecting(0, &antenna, cast)
+            .position_enu_m
+            .expect("fix")
+            - antenna;
+        let code = multipath.range_bias_m(
+            Observable::Code,
+            cfg.reflection_amplitude,
+            cfg.correlator_spacing_chips,
+        );
+        let b: Vec<f64> = seen
+            .iter()
+            .map(|d| if *d == sky[1] { code } else { 0.0 })
+            .collect();
+        assert!((single - least_squares_error(&seen, &b)).norm() < 1e-9);
+        assert!(code.abs() > carrier.abs(), "code {code}, carrier {carrier}");
+    }
+
+    /// Surfaces that hide satellites but lie beyond the reflection range (here 500 m off,
+    /// everywhere below 35°) reflect nothing: the receiver's fixes are bit for bit those
+    /// without reflections, over a moving sky and an RTK receiver's fix and refix.
+    #[test]
+    fn hiding_surfaces_out_of_range_change_nothing() {
+        let low = 35f64.to_radians().sin();
+        let far = |_: &Vector3<f64>, d: &Vector3<f64>, reach: f64| {
+            (d.z < low && reach >= 500.0).then_some(500.0)
+        };
+        for profile in [GnssProfile::Rtk, GnssProfile::Consumer] {
+            let (mut a, mut b) = (receiver(profile), receiver(profile));
+            for k in 0..3000 {
+                let t = k * 200_000_000;
+                let at = Vector3::new(0.01 * k as f64, 2.0, 1.7);
+                let with = a.measure_reflecting(t, &at, far);
+                let without = b.measure(t, &at, |d| d.z >= low);
+                assert_eq!(with, without, "epoch {k}");
+            }
+        }
+    }
+
+    /// Near a reflector the receiver is fooled: in the lane an RTK receiver is float on the
+    /// NLOS satellite (reported σ 0.2 m per axis, scaled by HDOP), and its horizontal error
+    /// stays above twice that σ at every epoch of 200 s, where without reflections its
+    /// single fix's error stays within four of its σ on each axis.
+    #[test]
+    fn near_a_reflector_the_error_exceeds_the_reported_sigma() {
+        let (lane, sky, antenna) = a_lane();
+        let rtk_sky: Vec<_> = sky.iter().copied().filter(|d| *d != sky[1]).collect();
+        let cfg = GnssConfig {
+            profile: GnssProfile::Rtk,
+            ..GnssConfig::default()
+        };
+        let mut rx = GnssReceiver::with_sky(
+            &cfg,
+            Constellation::standing(&rtk_sky),
+            crate::rng::stream(7, "gnss"),
+        );
+        let mut plain = rx.clone();
+        let mut worst_ratio = f64::INFINITY;
+        let mut plain_ratio: f64 = 0.0;
+        for k in 0..1000 {
+            let t = k * 200_000_000;
+            let fix = rx.measure_among(t, &antenna, &lane);
+            assert_eq!(fix.status, FixStatus::Float);
+            let e = fix.position_enu_m.expect("fix") - antenna;
+            worst_ratio = worst_ratio.min(e.xy().norm() / fix.variance_enu_m2[0].sqrt());
+            let fix = plain.measure(t, &antenna, |d| sky_visible(&lane, &antenna, d));
+            let e = fix.position_enu_m.expect("fix") - antenna;
+            let s = fix.variance_enu_m2[0].sqrt();
+            plain_ratio = plain_ratio.max(e.x.abs().max(e.y.abs()) / s);
+        }
+        assert!(worst_ratio > 2.0, "error within {worst_ratio} σ at best");
+        assert!(plain_ratio < 4.0, "without reflections: {plain_ratio} σ");
+    }
+
+    /// The code loop's error against the narrow correlator's envelope (spacing 0.1 chip):
+    /// `aδ/(1+a)` for short delays, `a·s/2` on the plateau, zero past `1 + s/2` chips; and
+    /// for every phase the code and carrier errors of a multipath satellite stay within the
+    /// envelope's in-phase and out-of-phase edges and `λ/4`.
+    #[test]
+    fn the_code_error_follows_the_narrow_correlator_envelope() {
+        let s = 0.1;
+        for a in [0.5, -0.5, 0.17, -0.17] {
+            let short = 0.01;
+            let got = dll_error_chips(a, short, s);
+            assert!((got - a * short / (1.0 + a)).abs() < 1e-12, "{a}: {got}");
+            let got = dll_error_chips(a, 0.5, s);
+            assert!((got - a * s / 2.0).abs() < 1e-12, "{a}: plateau {got}");
+            assert_eq!(
+                dll_error_chips(a, 1.0 + s / 2.0 + 0.01, s),
+                0.0,
+                "{a}: long"
+            );
+        }
+        let alpha = 0.5;
+        for i in 0..200 {
+            let delay_m = 3.0 + i as f64 * 0.001;
+            let r = Reception {
+                direction: Vector3::z(),
+                path: Path::Multipath { delay_m },
+            };
+            let code = r.range_bias_m(Observable::Code, alpha, s);
+            let carrier = r.range_bias_m(Observable::Carrier, alpha, s);
+            assert!(
+                code <= alpha * delay_m / (1.0 + alpha) + 1e-9
+                    && code >= -alpha * delay_m / (1.0 - alpha) - 1e-9,
+                "{delay_m}: code {code}"
+            );
+            assert!(
+                carrier.abs() < L1_WAVELENGTH_M / 4.0,
+                "{delay_m}: {carrier}"
+            );
+        }
+        let nlos = Reception {
+            direction: Vector3::z(),
+            path: Path::Nlos { delay_m: 2.5 },
+        };
+        assert_eq!(nlos.range_bias_m(Observable::Code, alpha, s), 2.5);
+        assert_eq!(nlos.range_bias_m(Observable::Carrier, alpha, s), 2.5);
+    }
+
+    /// The default amplitude is wood's Fresnel coefficient at L1 and normal incidence from
+    /// ITU-R P.2040-1's Table 3 (`ε' = 1.99`, `σ = 0.0047·f^1.0718` S/m).
+    #[test]
+    fn the_default_reflection_amplitude_is_woods() {
+        use nalgebra::Complex;
+        let f_ghz: f64 = 1.57542;
+        let sigma = 0.0047 * f_ghz.powf(1.0718);
+        let eps0 = 8.854_187_817e-12;
+        let eps = Complex::new(1.99, -sigma / (std::f64::consts::TAU * f_ghz * 1e9 * eps0));
+        let n = eps.sqrt();
+        let gamma = ((Complex::new(1.0, 0.0) - n) / (Complex::new(1.0, 0.0) + n)).norm();
+        let alpha = GnssConfig::default().reflection_amplitude;
+        assert!(
+            (gamma - alpha).abs() < 0.005,
+            "|Γ| = {gamma}, default {alpha}"
+        );
+    }
+
     #[test]
     fn dops_of_a_good_and_a_degenerate_sky() {
         let good = [
@@ -839,5 +1683,21 @@ mod tests {
             ..GnssConfig::default()
         };
         assert!(cfg.check().expect_err("tau").contains("sensors.gnss.float"));
+        let cfg = GnssConfig {
+            profile: GnssProfile::Rtk,
+            reflection_amplitude: 1.0,
+            ..GnssConfig::default()
+        };
+        assert!(cfg.check().expect_err("α").contains("reflection_amplitude"));
+        let cfg = GnssConfig {
+            profile: GnssProfile::Rtk,
+            reflection_range_m: 0.0,
+            ..GnssConfig::default()
+        };
+        assert!(
+            cfg.check()
+                .expect_err("range")
+                .contains("reflection_range_m")
+        );
     }
 }
