@@ -21,12 +21,10 @@ spread over sessions (and rebuilds) runs each cell once.
 import argparse
 import json
 import math
-import re
 import statistics
-import tomllib
 from pathlib import Path
 
-from studylib import toml_text
+from studylib import load, resume_files
 
 RUNGS = ["ideal", "paper", "typical", "field"]
 # Published S3 figures as context, not as a target: Hroob et al. 2021, Table 2 (ATE, m).
@@ -41,78 +39,6 @@ def normal(point):
     if p.get("variant") == '"typical"':
         del p["variant"]
     return p
-
-
-def load(kept):
-    """Every kept run: its cell, metrics and timing, with the world folder's name."""
-    runs = []
-    for cell_path in sorted(Path(kept).glob("*/*/cell.json")):
-        d = cell_path.parent
-        run = {"world": d.parent.name, "cell": json.loads(cell_path.read_text())}
-        for name in ["metrics", "timing"]:
-            f = d / f"{name}.json"
-            run[name] = json.loads(f.read_text()) if f.exists() else None
-        runs.append(run)
-    return runs
-
-
-def points_of(cfg):
-    """Every point of a sweep file as [(key, TOML text)], variants outermost, then the
-    axes in file order, the last fastest (as `vinebench sweep` expands them)."""
-    points = [[]]
-    variants = sorted(cfg.get("variants", {}))
-    if variants:
-        points = [[("variant", toml_text(v))] for v in variants]
-    for key, values in cfg.get("axes", {}).items():
-        points = [p + [(key, toml_text(v))] for p in points for v in values]
-    return points
-
-
-def resume_files(sweep_file, kept, write_dir):
-    """One narrowed copy of `sweep_file` per (point, seed) some of whose systems have no
-    kept run in `kept` (a world's folder of kept runs), with only those systems.
-    Returns their paths."""
-    path = Path(sweep_file)
-    text = path.read_text()
-    cfg = tomllib.loads(text)
-    have = set()
-    for cell_path in Path(kept).glob("*/cell.json"):
-        c = json.loads(cell_path.read_text())
-        have.add((c["label"], bool(c.get("queue_size")), c["scenario"], c["seed"],
-                  tuple(sorted(normal(c["point"]).items()))))
-    head, *blocks = re.split(r"(?m)^(?=\[\[plugins\]\])", text)
-    plugins = [tomllib.loads(b)["plugins"][0] for b in blocks]
-    # A run with bounded queues (transport-*.toml) is another cell than the same system's
-    # without.
-    labels = [(p.get("label") or p["name"], "queue_size" in p) for p in plugins]
-    written = []
-    for i, point in enumerate(points_of(cfg)):
-        key = tuple(sorted(normal(point).items()))
-        for seed in cfg.get("seeds", [cfg.get("seed", 0)]):
-            missing = [b for b, (label, queued) in zip(blocks, labels)
-                       if not all((label, queued, s, seed, key) in have for s in cfg["scenarios"])]
-            if not missing:
-                continue
-            narrowed = re.sub(r"(?m)^seeds = .*$", f"seeds = [{seed}]", head)
-            for k, v in point:
-                if k == "variant":
-                    name = json.loads(v)
-                    # Keep this variant's table, drop the others'.
-                    narrowed = re.sub(r"(?ms)^\[variants\.([^\]]+)\]\n.*?(?=^\[|\Z)",
-                                      lambda m: m.group(0) if m.group(1) == name else "",
-                                      narrowed)
-                else:
-                    narrowed, n = re.subn(rf'(?m)^"{re.escape(k)}" = .*$', f'"{k}" = [{v}]',
-                                          narrowed)
-                    assert n == 1, f"{sweep_file}: axis {k} not on a line of its own"
-            narrowed = narrowed.rstrip() + "\n\n" + "".join(missing)
-            check = tomllib.loads(narrowed)
-            assert check["seeds"] == [seed] and len(check["plugins"]) == len(missing)
-            assert points_of(check) == [point], (points_of(check), point)
-            out = Path(write_dir) / f".{path.stem}.resume-{i}-{seed}.toml"
-            out.write_text(narrowed)
-            written.append(out)
-    return written
 
 
 def fmt_paper(system):
@@ -309,7 +235,7 @@ def main():
                          "folder) lacks, print their paths and stop")
     args = ap.parse_args()
     if args.resume:
-        for f in resume_files(args.resume, args.kept, Path(args.resume).parent):
+        for f in resume_files(args.resume, args.kept, Path(args.resume).parent, normal):
             print(f)
         return
     runs = load(args.kept)

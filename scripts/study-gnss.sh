@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Issue 47's GNSS study (docs/gnss/): each system with its GNSS on, on S0-S3 under `typical`
+# and `field`, three seeds, with no receiver, a consumer one, RTK under the block's sky and
+# RTK under an open sky (configs/study/gnss/<world>.toml). Each cell is recorded once and
+# replayed to every system. Many hours on two cores; spread it over sessions:
+#   bash scripts/study-gnss.sh [WORLD...]   run (or resume) the named worlds' sweeps
+#                                           (our-world by default)
+#   bash scripts/study-gnss.sh --save       keep the finished runs' small files in git
+#   bash scripts/study-gnss.sh --table      write docs/gnss/study.md from what is kept
+# What --save keeps in docs/gnss/runs/<world>/<key>/ (cell.json, metrics.json, timing.json)
+# is what counts: a sweep runs only the cells not kept yet, in the order `typical` before
+# `field`, then seed, then receiver (scripts/study-gnss.py --resume), on any machine and
+# after any rebuild.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+results=results/gnss
+kept=docs/gnss/runs
+# VINEBENCH: another build's vinebench (its plugins beside it), used as it is, not rebuilt.
+vb=${VINEBENCH:-target/release/vinebench}
+
+save() {
+    for dir in "$results"/*/runs/*/; do
+        [ -f "$dir/cell.json" ] || continue
+        world=$(basename "$(dirname "$(dirname "$dir")")")
+        dest="$kept/$world/$(basename "$dir")"
+        [ -f "$dest/cell.json" ] && continue
+        mkdir -p "$dest"
+        for f in cell.json metrics.json timing.json; do
+            [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
+        done
+    done
+    echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"
+}
+
+case "${1:-}" in
+--save) save; exit 0 ;;
+--table) python3 scripts/study-gnss.py --kept "$kept" --out docs/gnss/study.md; exit 0 ;;
+esac
+
+source scripts/setup.sh
+[ -n "${VINEBENCH:-}" ] || cargo build --release
+
+worlds=("$@")
+[ ${#worlds[@]} -gt 0 ] || worlds=(our-world)
+for world in "${worlds[@]}"; do
+    file="configs/study/gnss/$world.toml"
+    resumes=$(python3 scripts/study-gnss.py --resume "$file" --kept "$kept/$world")
+    [ -n "$resumes" ] || { echo "$world: every run kept"; continue; }
+    for resume in $resumes; do
+        "$vb" sweep "$resume" --out "$results/$world" --allow-failures || true
+        rm -f "$resume"
+        save
+    done
+done
+python3 scripts/study-gnss.py --kept "$kept" --out docs/gnss/study.md
