@@ -43,6 +43,10 @@ pub struct Config {
     /// And the voxel the map cloud is thinned to, m.
     pub map_voxel_m: f64,
     pub backend: BackendConfig,
+    /// RTAB-Map's `Optimizer/` parameters that this plugin's graph takes (the table
+    /// `[Optimizer]`, keys by RTAB-Map's names).
+    #[serde(rename = "Optimizer")]
+    pub optimizer: OptimizerConfig,
     /// Optional: a CSV file to write every graph update's size and time to
     /// (`poses,full,seconds`); a relative path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
@@ -78,6 +82,7 @@ impl Default for Config {
                 name: "factrs".into(),
                 ..BackendConfig::default()
             },
+            optimizer: OptimizerConfig::default(),
             profile_csv: None,
             locations_csv: None,
         }
@@ -349,6 +354,27 @@ impl Default for LoopClosureConfig {
             optimize_max_error: 3.0,
             min_sigma_rad: 0.005,
             min_sigma_m: 0.01,
+        }
+    }
+}
+
+/// RTAB-Map's `Optimizer/` group, as far as this plugin's graph goes.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OptimizerConfig {
+    /// `Optimizer/PriorsIgnored` (RTAB-Map's default `true`): "ignore prior constraints
+    /// (global pose or GPS) while optimizing". `false`: the GNSS receiver is asked for and
+    /// every location with a fix gets RTAB-Map's GPS prior on its position, which expresses
+    /// the map in the fixes' east-north-up frame ([`crate::gps`]). `true`: no receiver is
+    /// asked for and fixes that arrive all the same are ignored.
+    #[serde(rename = "PriorsIgnored")]
+    pub priors_ignored: bool,
+}
+
+impl Default for OptimizerConfig {
+    fn default() -> Self {
+        Self {
+            priors_ignored: true,
         }
     }
 }

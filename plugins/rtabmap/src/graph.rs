@@ -9,8 +9,13 @@
 //! ISAM2, which cannot overwrite an estimate it holds). A false loop between two
 //! identical-looking rows has to bend many odometry links by metres to be satisfied, which
 //! this check sees.
+//!
+//! Position priors (RTAB-Map's GPS priors, [`crate::gps`]) are self-links: they take no
+//! part in that check (RTAB-Map's `graph::computeMaxGraphErrors` skips links from a node to
+//! itself), and the first one loosens the first location's anchor, as RTAB-Map's GTSAM
+//! optimiser does when the graph holds a GPS prior (`OptimizerGTSAM::optimize`).
 
-use nalgebra::{Isometry3, Vector6};
+use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::factor_graph::backend::{
     self, Backend, BackendConfig, BackendError, Factor, FactorId, Profiled, Robust, Scope, Value,
     Var,
@@ -64,6 +69,19 @@ pub enum LoopOutcome {
     Rejected(Strain),
 }
 
+/// The first node's anchor: the pose it is held at and the factor that holds it.
+#[derive(Debug, Clone, Copy)]
+struct Root {
+    pose: Isometry3<f64>,
+    factor: FactorId,
+    /// Loosened for position priors.
+    loose: bool,
+}
+
+/// The first node's anchor: standard deviation of each of its rotations and coordinates
+/// (rad, m).
+pub const ANCHOR_SIGMA: f64 = 1e-4;
+
 #[derive(Debug)]
 pub struct PoseGraph {
     /// Every update timed (`profile_csv`).
@@ -71,6 +89,9 @@ pub struct PoseGraph {
     links: Vec<Link>,
     nodes: Vec<u64>,
     optimize_max_error: f64,
+    root: Option<(u64, Root)>,
+    /// Position priors added.
+    priors: usize,
 }
 
 impl PoseGraph {
@@ -80,6 +101,8 @@ impl PoseGraph {
             links: Vec::new(),
             nodes: Vec::new(),
             optimize_max_error,
+            root: None,
+            priors: 0,
         })
     }
 
@@ -103,13 +126,71 @@ impl PoseGraph {
     ) -> Result<(), BackendError> {
         self.backend
             .insert(Var::Pose(id), Value::Pose(map_from_base))?;
-        self.backend.add(Factor::PosePrior {
+        let factor = self.backend.add(Factor::PosePrior {
             key: id,
             world_from_body: map_from_base,
-            sigmas: Vector6::repeat(1e-4),
+            sigmas: Vector6::repeat(ANCHOR_SIGMA),
         })?;
+        self.root = Some((
+            id,
+            Root {
+                pose: map_from_base,
+                factor,
+                loose: false,
+            },
+        ));
         self.nodes.push(id);
         Ok(())
+    }
+
+    /// Adds a prior on node `id`'s position (`sigmas` in m, per axis of the map frame) and
+    /// optimises the whole graph, as RTAB-Map does when a new location has a prior link
+    /// (`Rtabmap::process`: "prior edge" is one of the reasons to optimise).
+    ///
+    /// The first one replaces the first node's anchor by one with `root_sigmas`
+    /// (`[roll, pitch, yaw, x, y, z]`, rad and m) at the same pose: with the map to be put
+    /// where the priors say, the first node may move too (RTAB-Map's GTSAM optimiser sets
+    /// its root prior's variances by whether the graph holds a GPS prior, at every batch
+    /// optimisation; here the graph is kept between updates, so the anchor is swapped once).
+    pub fn add_position_prior(
+        &mut self,
+        id: u64,
+        position: Vector3<f64>,
+        sigmas: Vector3<f64>,
+        root_sigmas: Vector6<f64>,
+    ) -> Result<(), BackendError> {
+        if self.backend.pose(id).is_none() {
+            return Err(BackendError::MissingVariable(Var::Pose(id)));
+        }
+        if let Some((root_id, root)) = &mut self.root
+            && !root.loose
+        {
+            if !self.backend.remove(root.factor) {
+                return Err(BackendError::Solver(format!(
+                    "the first node's anchor {:?} could not be removed",
+                    root.factor
+                )));
+            }
+            root.factor = self.backend.add(Factor::PosePrior {
+                key: *root_id,
+                world_from_body: root.pose,
+                sigmas: root_sigmas,
+            })?;
+            root.loose = true;
+        }
+        self.backend.add(Factor::Position {
+            key: id,
+            position,
+            sigmas,
+        })?;
+        self.priors += 1;
+        self.backend.update(Scope::Full)?;
+        Ok(())
+    }
+
+    /// Position priors added.
+    pub fn priors(&self) -> usize {
+        self.priors
     }
 
     /// Adds node `to` after node `from` by an odometry link, starting at `from`'s estimate

@@ -15,7 +15,9 @@
 //! 4. proximity detection ([`proximity`]): a location near an older one in the graph is
 //!    registered to it by ICP on their laser scans;
 //! 5. the graph of locations on the shared backend ([`graph`]): a loop closure is kept only
-//!    if, after optimisation, no link is strained beyond `OptimizeMaxError`.
+//!    if, after optimisation, no link is strained beyond `OptimizeMaxError`;
+//! 6. with `Optimizer/PriorsIgnored = false` (off by default, as in RTAB-Map), a GPS prior
+//!    on every location that has a fix, which puts the map in the fixes' frame ([`gps`]).
 //!
 //! Outputs: the odometry poses as they come (corrected by the graph), and at the end the
 //! trajectory carried by the optimised locations, a point cloud from the locations' depth,
@@ -27,6 +29,7 @@ pub mod attitude;
 pub mod bayes;
 pub mod config;
 pub mod features;
+pub mod gps;
 pub mod graph;
 pub mod matching;
 pub mod memory;

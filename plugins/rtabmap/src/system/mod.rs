@@ -3,17 +3,21 @@
 mod localization;
 mod location_log;
 mod loop_closure;
+#[cfg(test)]
+mod tests;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector2, Vector3};
 use plugin_api::{
-    Event, EventKind, Imu, LaserScan, MapStart, OccupancyGrid, Parameters, PluginError, Pose,
-    PoseStatus, Requirements, RgbdFrame, Rig, SensorKind, SlamOutput, SlamSystem, WheelOdometry,
+    Event, EventKind, Gnss as GnssMessage, Imu, LaserScan, MapStart, OccupancyGrid, Parameters,
+    PluginError, Pose, PoseStatus, Requirements, RgbdFrame, Rig, SensorKind, SlamOutput,
+    SlamSystem, WheelOdometry,
 };
 use slam_common::maps::occupancy::OccupancyGridBuilder;
 use slam_common::registration::scan2d::points_from_ranges;
 
 use crate::config::{Config, OdometrySource};
 use crate::features::{Features, Image, extract};
+use crate::gps::{Gps, GpsPriors, root_sigmas};
 use crate::graph::{PoseGraph, Sigmas};
 use crate::memory::{Location, Memory, Update};
 use crate::scan_odometry::{ScanOdometry, Sweep, planar};
@@ -65,6 +69,9 @@ pub struct Rtabmap {
     /// returned.
     localizing: Option<localization::Localizing>,
     localized_trajectory: Vec<Pose>,
+    /// GPS priors (`Optimizer/PriorsIgnored = false` and a receiver in the rig): the fixes
+    /// and the one every location took (`crate::gps`).
+    gps: Option<GpsPriors>,
 }
 
 /// Odometry at a camera frame.
@@ -111,6 +118,33 @@ impl Rtabmap {
             location: self.memory.last().map(|l| l.id),
         });
         pose
+    }
+
+    /// Planar odometry (wheels and ICP without attitude), RTAB-Map's `Reg/Force3DoF`: the
+    /// graph stays level.
+    fn planar(&self) -> bool {
+        self.cfg.odometry == OdometrySource::WheelIcp && self.cfg.icp.attitude_gain == 0.0
+    }
+
+    /// Puts the GPS prior of each location that has chosen its fix into the graph, which
+    /// is then optimised in full (`crate::gps`).
+    fn add_gps_priors(&mut self, settled: Vec<(u64, Gps)>) -> Result<(), PluginError> {
+        let planar = self.planar();
+        for (id, fix) in settled {
+            let (Some(gps), Some(map_from_base), Some(location)) = (
+                &mut self.gps,
+                self.graph.pose(id),
+                self.memory.locations().get(id as usize),
+            ) else {
+                continue;
+            };
+            let odom_from_base = location.odom_from_base;
+            let prior = gps.prior(id, &fix, &map_from_base, &odom_from_base, planar);
+            self.graph
+                .add_position_prior(id, prior.position, prior.sigmas, root_sigmas(planar))
+                .map_err(|e| Self::error("factor graph")(e.to_string()))?;
+        }
+        Ok(())
     }
 
     fn event(&mut self, stamp_ns: i64, kind: EventKind, detail: String) {
@@ -259,6 +293,12 @@ impl Rtabmap {
             cloud,
         };
         let (_, hypothesis, update) = self.memory.add(location, self.cfg.loop_closure.enabled);
+        if let Some(gps) = &mut self.gps {
+            // The previous location's fix is chosen now if it was not yet; this one's
+            // when a fix stamped at or after it arrives (at once if one has).
+            let settled = gps.location(id, stamp_ns);
+            self.add_gps_priors(settled)?;
+        }
         if let Some(h) = hypothesis {
             self.close_loop(id, h)?;
         }
@@ -283,6 +323,16 @@ impl SlamSystem for Rtabmap {
         .localizing()
     }
 
+    /// The GNSS receiver too with `Optimizer/PriorsIgnored = false`.
+    fn requirements_for(config_toml: &str) -> Result<Requirements, PluginError> {
+        let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
+        let mut requirements = Self::requirements();
+        if !cfg.optimizer.priors_ignored {
+            requirements.sensors.push(SensorKind::Gnss);
+        }
+        Ok(requirements)
+    }
+
     /// RTAB-Map's localisation mode in a map a mapping run saved (`system::localization`).
     fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
         if (start.format, start.format_version) != (localization::FORMAT, localization::VERSION) {
@@ -295,6 +345,8 @@ impl SlamSystem for Rtabmap {
             )));
         }
         let mut system = Self::new(config_toml, rig)?;
+        // The saved map is the reference: no GPS priors move it.
+        system.gps = None;
         system.load_map(start.map)?;
         if let (Some(guess), Some(l)) = (
             start.initial_guess.and_then(|g| g.map_from_base.isometry()),
@@ -340,6 +392,20 @@ impl SlamSystem for Rtabmap {
         };
         let graph = PoseGraph::new(&cfg.backend, cfg.loop_closure.optimize_max_error)
             .map_err(|e| PluginError::new(format!("backend: {e}")))?;
+        let gps = match (cfg.optimizer.priors_ignored, rig.first(SensorKind::Gnss)) {
+            (true, _) => None,
+            (false, None) => {
+                eprintln!(
+                    "rtabmap: Optimizer/PriorsIgnored = false, but the world has no GNSS \
+                     receiver: no GPS priors"
+                );
+                None
+            }
+            (false, Some(receiver)) => Some(GpsPriors::new(
+                receiver.base_from_sensor().translation.vector,
+                cfg.memory.detection_rate_hz,
+            )),
+        };
         Ok(Self {
             memory: Memory::new(&cfg.memory, &cfg.loop_closure),
             base_from_camera,
@@ -356,6 +422,7 @@ impl SlamSystem for Rtabmap {
             location_log: cfg.locations_csv.as_ref().map(|_| LocationLog::default()),
             localizing: None,
             localized_trajectory: Vec::new(),
+            gps,
             cfg,
         })
     }
@@ -368,6 +435,19 @@ impl SlamSystem for Rtabmap {
                 &(self.base_r_imu * Vector3::from(imu.accel_mps2)),
             );
         }
+        Ok(None)
+    }
+
+    /// Keeps a usable fix for the locations' GPS priors, refuses one that cannot be used
+    /// with a `gnss_rejected` event (never an error); a fix stamped after the newest
+    /// location settles the fix it takes, and its prior goes into the graph. Ignored with
+    /// `Optimizer/PriorsIgnored = true`.
+    fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
+        let Some(gps) = &mut self.gps else {
+            return Ok(None);
+        };
+        let settled = gps.push(gnss, &mut self.events);
+        self.add_gps_priors(settled.into_iter().collect())?;
         Ok(None)
     }
 
@@ -474,6 +554,17 @@ impl SlamSystem for Rtabmap {
                 trajectory: std::mem::take(&mut self.localized_trajectory),
                 ..SlamOutput::default()
             });
+        }
+        if let Some(gps) = &mut self.gps {
+            let settled = gps.finish();
+            self.add_gps_priors(settled.into_iter().collect())?;
+        }
+        if let Some(gps) = &self.gps {
+            eprintln!(
+                "rtabmap: GPS priors on {} of {} locations",
+                gps.priors(),
+                self.memory.locations().len()
+            );
         }
         if let Some(path) = &self.cfg.profile_csv {
             self.graph
