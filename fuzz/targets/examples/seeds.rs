@@ -131,10 +131,14 @@ fn map(run: &Path, out: &Path) -> Result<()> {
                 points: whole.iter().take(20).copied().collect(),
             })
             .collect(),
+        map_from_enu: Some(nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(-3.0, 2.0, 0.0),
+            nalgebra::Vector3::new(0.0, 0.0, 0.7),
+        )),
     };
-    let saved = |format: &str, bytes: Vec<u8>| plugin_api::SavedMap {
+    let saved = |format: &str, version: u32, bytes: Vec<u8>| plugin_api::SavedMap {
         format: format.into(),
-        version: 1,
+        version,
         bytes,
     };
     write(
@@ -144,7 +148,7 @@ fn map(run: &Path, out: &Path) -> Result<()> {
         &vinebench::results::map_file::encode_map(
             "lio-sam",
             "0.1.0",
-            &saved("keyframe-clouds", keyframes.to_bytes()),
+            &saved("keyframe-clouds", keyframes.version(), keyframes.to_bytes()),
         ),
     )?;
     write(
@@ -154,7 +158,7 @@ fn map(run: &Path, out: &Path) -> Result<()> {
         &vinebench::results::map_file::encode_map(
             "amcl",
             "0.1.0",
-            &saved("vinebench-grid", grid.to_map_bytes()),
+            &saved("vinebench-grid", 1, grid.to_map_bytes()),
         ),
     )
 }

@@ -52,11 +52,14 @@ pub const TARGETS: &[(&str, Target)] = &[
 /// checks, then the payload as the two formats parsed in this workspace read it (lio-sam's
 /// `keyframe-clouds`, the host's `vinebench-grid`); the raw bytes through both as well.
 pub fn saved_map(data: &[u8]) {
-    if let Ok((_, payload)) = vinebench::results::map_file::decode_map(data, "map.bin", None) {
-        let _ = slam_common::maps::keyframes::KeyframeMap::from_bytes(&payload);
+    if let Ok((head, payload)) = vinebench::results::map_file::decode_map(data, "map.bin", None) {
+        let _ =
+            slam_common::maps::keyframes::KeyframeMap::from_bytes(&payload, head.format_version);
         let _ = plugin_api::OccupancyGrid::from_map_bytes(&payload);
     }
-    let _ = slam_common::maps::keyframes::KeyframeMap::from_bytes(data);
+    for version in 1..=slam_common::maps::keyframes::KEYFRAME_MAP_VERSION {
+        let _ = slam_common::maps::keyframes::KeyframeMap::from_bytes(data, version);
+    }
     let _ = plugin_api::OccupancyGrid::from_map_bytes(data);
 }
 

@@ -83,6 +83,31 @@ pub struct KeyframeState {
     pub last_covariance: Option<Matrix3<f64>>,
 }
 
+/// A fix as the plugin uses it, or `None` with a `gnss_rejected` event saying why not (no
+/// fix, a position that is not finite, a covariance that is not positive definite).
+pub fn usable(gnss: &GnssMessage, events: &mut Vec<Event>) -> Option<Fix> {
+    match (gnss.problem(), gnss.position(), gnss.covariance()) {
+        (None, Some(position_enu_m), Some(covariance_enu_m2)) => Some(Fix {
+            stamp_ns: gnss.stamp_ns,
+            position_enu_m,
+            covariance_enu_m2,
+        }),
+        (problem, ..) => {
+            events.push(Event::new(
+                gnss.stamp_ns,
+                EventKind::GnssRejected,
+                format!(
+                    "lio-sam: GNSS fix ({}, {} satellites) refused: {}",
+                    gnss.status.name(),
+                    gnss.satellites,
+                    problem.unwrap_or("not usable")
+                ),
+            ));
+            None
+        }
+    }
+}
+
 /// The GNSS side of the mapping: the queue of fixes, the alignment, and LIO-SAM's
 /// selection.
 #[derive(Debug, Clone)]
@@ -117,30 +142,11 @@ impl Gnss {
 
     /// Queues a fix, or refuses one that cannot be used with a `gnss_rejected` event.
     pub fn push(&mut self, gnss: &GnssMessage, events: &mut Vec<Event>) {
-        match (gnss.problem(), gnss.position(), gnss.covariance()) {
-            (None, Some(position_enu_m), Some(covariance_enu_m2)) => {
-                // Fixes arrive in the order of their availability; keep the queue in stamp
-                // order all the same (the original's is in arrival order).
-                let at = self.queue.partition_point(|f| f.stamp_ns <= gnss.stamp_ns);
-                self.queue.insert(
-                    at,
-                    Fix {
-                        stamp_ns: gnss.stamp_ns,
-                        position_enu_m,
-                        covariance_enu_m2,
-                    },
-                );
-            }
-            (problem, ..) => events.push(Event::new(
-                gnss.stamp_ns,
-                EventKind::GnssRejected,
-                format!(
-                    "lio-sam: GNSS fix ({}, {} satellites) refused: {}",
-                    gnss.status.name(),
-                    gnss.satellites,
-                    problem.unwrap_or("not usable")
-                ),
-            )),
+        if let Some(fix) = usable(gnss, events) {
+            // Fixes arrive in the order of their availability; keep the queue in stamp
+            // order all the same (the original's is in arrival order).
+            let at = self.queue.partition_point(|f| f.stamp_ns <= fix.stamp_ns);
+            self.queue.insert(at, fix);
         }
     }
 

@@ -9,7 +9,7 @@ use plugin_api::{
 };
 use slam_common::factor_graph::backend::ImuBias;
 use slam_common::maps::keyframes::{
-    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe,
+    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe, reads_version,
 };
 use slam_common::maps::localizer::MapLocalizer;
 use slam_common::motion::imu::NavState;
@@ -18,7 +18,7 @@ use slam_common::registration::voxel::downsample;
 use crate::config::Config;
 use crate::deskew::{SweepLayout, rings};
 use crate::features::{Features, extract};
-use crate::gnss::{Gnss, KeyframeState, Orientations, yaw};
+use crate::gnss::{Gnss, KeyframeState, Orientations, usable, yaw};
 use crate::graph::KeyframeGraph;
 use crate::imu_odometry::{Correction, ImuOdometry};
 use crate::keyframe::KeyframeView;
@@ -144,6 +144,9 @@ pub struct LioSam {
 #[derive(Debug)]
 struct Localizing {
     localizer: MapLocalizer,
+    /// The map's georeference `map_from_enu` and the antenna's horizontal distance from
+    /// the lidar, m, when the map was made with GNSS and a receiver feeds this run.
+    gnss_prior: Option<(Isometry3<f64>, f64)>,
     guess: Option<Isometry3<f64>>,
     points: Vec<[f32; 3]>,
     status: PoseStatus,
@@ -645,23 +648,35 @@ impl SlamSystem for LioSam {
     /// loop closure off: the saved map is the reference), and each sweep's features are
     /// registered to the saved keyframes (`slam_common::maps::localizer`).
     fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
-        if (start.format, start.format_version) != (KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION) {
+        if start.format != KEYFRAME_MAP_FORMAT || !reads_version(start.format_version) {
             return Err(PluginError::new(format!(
-                "lio-sam reads {KEYFRAME_MAP_FORMAT} version {KEYFRAME_MAP_VERSION} maps, not {} version {}",
+                "lio-sam reads {KEYFRAME_MAP_FORMAT} versions 1 to {KEYFRAME_MAP_VERSION} maps, not {} version {}",
                 start.format, start.format_version
             )));
         }
-        let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
+        let map =
+            KeyframeMap::from_bytes(start.map, start.format_version).map_err(PluginError::new)?;
         let mut system = Self::new(config_toml, rig)?;
         system.cfg.loop_closure.enabled = false;
-        // The saved map is the reference: no GPS factors move it.
-        system.gnss = None;
+        // The saved map is the reference: no GPS factors move it. A map made with GNSS
+        // keeps its georeference; with a receiver now, each fix is a prior for the global
+        // search (the antenna's horizontal offset from the lidar counted in its spread).
+        let gnss_prior = match (map.map_from_enu, system.gnss.take()) {
+            (Some(map_from_enu), Some(_)) => rig.first(SensorKind::Gnss).map(|receiver| {
+                let lever = (system.lidar_from_base * receiver.base_from_sensor())
+                    .translation
+                    .vector;
+                (map_from_enu, lever.xy().norm())
+            }),
+            _ => None,
+        };
         let guess = start
             .initial_guess
             .and_then(|g| g.map_from_base.isometry())
             .map(|map_from_base| map_from_base * system.lidar_from_base.inverse());
         system.localizer = Some(Localizing {
             localizer: MapLocalizer::new(map, system.cfg.localization.clone()),
+            gnss_prior,
             guess,
             points: Vec::new(),
             status: PoseStatus::Searching,
@@ -777,6 +792,20 @@ impl SlamSystem for LioSam {
     /// Queues a usable fix for the next keyframes' GPS factors; refuses one that cannot be
     /// used with a `gnss_rejected` event (never an error). Ignored without `[gps]`.
     fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
+        if let Some(l) = &mut self.localizer {
+            if let Some((map_from_enu, offset_m)) = l.gnss_prior
+                && let Some(fix) = usable(gnss, &mut self.events)
+            {
+                let c = fix.covariance_enu_m2;
+                let sigma = (c[(0, 0)].max(c[(1, 1)])
+                    + self.cfg.localization.gnss_georeference_sigma_m.powi(2)
+                    + offset_m * offset_m)
+                    .sqrt();
+                let at = map_from_enu * nalgebra::Point3::from(fix.position_enu_m);
+                l.localizer.gnss_prior(&at.coords, sigma);
+            }
+            return Ok(None);
+        }
         if let Some(g) = &mut self.gnss {
             g.push(gnss, &mut self.events);
         }
@@ -889,6 +918,7 @@ impl SlamSystem for LioSam {
                     }
                 })
                 .collect(),
+            map_from_enu: self.gnss.as_ref().and_then(Gnss::map_from_enu),
         };
         Ok(SlamOutput {
             trajectory,
@@ -897,7 +927,7 @@ impl SlamSystem for LioSam {
             events: std::mem::take(&mut self.events),
             saved_map: Some(SavedMap {
                 format: KEYFRAME_MAP_FORMAT.into(),
-                version: KEYFRAME_MAP_VERSION,
+                version: saved.version(),
                 bytes: saved.to_bytes(),
             }),
         })

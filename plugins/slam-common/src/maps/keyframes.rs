@@ -1,16 +1,24 @@
 //! A lidar system's map as it saves it to localise in later (issue 46): its keyframes, each
 //! a pose in the map and the cloud registered there, in the keyframe's sensor frame.
 //!
-//! Bytes ([`KEYFRAME_MAP_FORMAT`] version [`KEYFRAME_MAP_VERSION`], little-endian): the
-//! keyframe count (u32), then per keyframe `map_from_sensor` as x, y, z, qx, qy, qz, qw
-//! (7 x f64), its point count (u32) and the points (3 x f32 each).
+//! Bytes ([`KEYFRAME_MAP_FORMAT`], little-endian): the keyframe count (u32), then per
+//! keyframe `map_from_sensor` as x, y, z, qx, qy, qz, qw (7 x f64), its point count (u32)
+//! and the points (3 x f32 each). Version 1 ends there; version 2 (a map made with GNSS,
+//! issue 47) adds its georeference `map_from_enu` (the receiver's east-north-up frame in the
+//! map, 7 x f64 as above), so that a later run can put its fixes into the map.
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 
 /// The format's name in a saved map.
 pub const KEYFRAME_MAP_FORMAT: &str = "keyframe-clouds";
-/// The format's version.
-pub const KEYFRAME_MAP_VERSION: u32 = 1;
+/// The format's newest version (a map without a georeference is saved as version 1, which
+/// every reader since issue 46 reads).
+pub const KEYFRAME_MAP_VERSION: u32 = 2;
+
+/// Whether this build reads maps of `version`.
+pub fn reads_version(version: u32) -> bool {
+    (1..=KEYFRAME_MAP_VERSION).contains(&version)
+}
 
 /// One keyframe of a saved map.
 #[derive(Debug, Clone, PartialEq)]
@@ -24,10 +32,26 @@ pub struct MapKeyframe {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct KeyframeMap {
     pub keyframes: Vec<MapKeyframe>,
+    /// Where the GNSS receiver's east-north-up frame lies in the map, if the map was made
+    /// with GNSS.
+    pub map_from_enu: Option<Isometry3<f64>>,
+}
+
+fn push_pose(out: &mut Vec<u8>, pose: &Isometry3<f64>) {
+    let t = pose.translation.vector;
+    let q = pose.rotation.coords;
+    for v in [t.x, t.y, t.z, q.x, q.y, q.z, q.w] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
 }
 
 impl KeyframeMap {
-    /// The map's bytes.
+    /// The version [`KeyframeMap::to_bytes`] writes: 2 with a georeference, else 1.
+    pub fn version(&self) -> u32 {
+        if self.map_from_enu.is_some() { 2 } else { 1 }
+    }
+
+    /// The map's bytes, of [`KeyframeMap::version`].
     pub fn to_bytes(&self) -> Vec<u8> {
         let n: usize = self
             .keyframes
@@ -37,11 +61,7 @@ impl KeyframeMap {
         let mut out = Vec::with_capacity(4 + n);
         out.extend_from_slice(&(self.keyframes.len() as u32).to_le_bytes());
         for k in &self.keyframes {
-            let t = k.map_from_sensor.translation.vector;
-            let q = k.map_from_sensor.rotation.coords;
-            for v in [t.x, t.y, t.z, q.x, q.y, q.z, q.w] {
-                out.extend_from_slice(&v.to_le_bytes());
-            }
+            push_pose(&mut out, &k.map_from_sensor);
             out.extend_from_slice(&(k.points.len() as u32).to_le_bytes());
             for p in &k.points {
                 for v in p {
@@ -49,12 +69,20 @@ impl KeyframeMap {
                 }
             }
         }
+        if let Some(georeference) = &self.map_from_enu {
+            push_pose(&mut out, georeference);
+        }
         out
     }
 
-    /// A map from its bytes; an error says what is wrong (cut short, a non-unit rotation,
-    /// bytes left over).
-    pub fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
+    /// A map from its bytes of `version` ([`reads_version`]); an error says what is wrong
+    /// (cut short, a non-unit rotation, bytes left over).
+    pub fn from_bytes(bytes: &[u8], version: u32) -> Result<Self, String> {
+        if !reads_version(version) {
+            return Err(format!(
+                "a {KEYFRAME_MAP_FORMAT} map of version {version}, not 1 to {KEYFRAME_MAP_VERSION}"
+            ));
+        }
         let mut at = 0usize;
         let mut take = |n: usize| -> Result<&[u8], String> {
             let end = at
@@ -66,19 +94,25 @@ impl KeyframeMap {
             Ok(s)
         };
         let u32_at = |s: &[u8]| u32::from_le_bytes(s.try_into().expect("4 bytes"));
+        // x, y, z, qx, qy, qz, qw: a pose if finite with a unit rotation.
+        let pose = |s: &[u8]| -> Option<Isometry3<f64>> {
+            let v: Vec<f64> = s
+                .chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect();
+            let q = Quaternion::new(v[6], v[3], v[4], v[5]);
+            (v.iter().all(|x| x.is_finite()) && (q.norm() - 1.0).abs() <= 1e-6).then(|| {
+                Isometry3::from_parts(
+                    Translation3::new(v[0], v[1], v[2]),
+                    UnitQuaternion::new_unchecked(q),
+                )
+            })
+        };
         let count = u32_at(take(4)?) as usize;
         let mut keyframes = Vec::with_capacity(count.min(1 << 20));
         for k in 0..count {
-            let mut v = [0.0f64; 7];
-            for x in &mut v {
-                *x = f64::from_le_bytes(take(8)?.try_into().expect("8 bytes"));
-            }
-            let q = Quaternion::new(v[6], v[3], v[4], v[5]);
-            if !v.iter().all(|x| x.is_finite()) || (q.norm() - 1.0).abs() > 1e-6 {
-                return Err(format!(
-                    "keyframe {k}'s pose is not finite with a unit rotation"
-                ));
-            }
+            let map_from_sensor = pose(take(56)?)
+                .ok_or_else(|| format!("keyframe {k}'s pose is not finite with a unit rotation"))?;
             let n = u32_at(take(4)?) as usize;
             let raw = take(
                 n.checked_mul(12)
@@ -91,20 +125,26 @@ impl KeyframeMap {
                 })
                 .collect();
             keyframes.push(MapKeyframe {
-                map_from_sensor: Isometry3::from_parts(
-                    Translation3::new(v[0], v[1], v[2]),
-                    UnitQuaternion::new_unchecked(q),
-                ),
+                map_from_sensor,
                 points,
             });
         }
+        let map_from_enu = match version {
+            1 => None,
+            _ => {
+                Some(pose(take(56)?).ok_or("the georeference is not finite with a unit rotation")?)
+            }
+        };
         if at != bytes.len() {
             return Err(format!(
                 "{} bytes after the last keyframe of a {KEYFRAME_MAP_FORMAT} map",
                 bytes.len() - at
             ));
         }
-        Ok(Self { keyframes })
+        Ok(Self {
+            keyframes,
+            map_from_enu,
+        })
     }
 }
 
@@ -128,14 +168,40 @@ mod tests {
                     points: Vec::new(),
                 },
             ],
+            map_from_enu: None,
         };
         let bytes = map.to_bytes();
-        assert_eq!(bytes.len(), 4 + 2 * 60 + 24);
-        assert_eq!(KeyframeMap::from_bytes(&bytes), Ok(map));
-        let cut = KeyframeMap::from_bytes(&bytes[..bytes.len() - 1]).expect_err("cut");
+        assert_eq!((map.version(), bytes.len()), (1, 4 + 2 * 60 + 24));
+        assert_eq!(KeyframeMap::from_bytes(&bytes, 1), Ok(map.clone()));
+        let cut = KeyframeMap::from_bytes(&bytes[..bytes.len() - 1], 1).expect_err("cut");
         assert!(cut.contains("cut short"), "{cut}");
         let mut extra = bytes.clone();
         extra.push(0);
-        assert!(KeyframeMap::from_bytes(&extra).is_err());
+        assert!(KeyframeMap::from_bytes(&extra, 1).is_err());
+        assert!(
+            KeyframeMap::from_bytes(&bytes, 2).is_err(),
+            "version 2 without its georeference"
+        );
+        assert!(KeyframeMap::from_bytes(&bytes, 3).is_err());
+
+        // With a georeference: version 2, 56 bytes more, read back bit for bit.
+        let georeferenced = KeyframeMap {
+            map_from_enu: Some(Isometry3::new(
+                nalgebra::Vector3::new(-12.5, 3.25, 0.1),
+                nalgebra::Vector3::new(0.0, 0.0, -2.2),
+            )),
+            ..map
+        };
+        let bytes = georeferenced.to_bytes();
+        assert_eq!(
+            (georeferenced.version(), bytes.len()),
+            (2, 4 + 2 * 60 + 24 + 56)
+        );
+        assert_eq!(KeyframeMap::from_bytes(&bytes, 2), Ok(georeferenced));
+        let mut bad = bytes.clone();
+        let n = bad.len();
+        bad[n - 8..].copy_from_slice(&f64::NAN.to_le_bytes());
+        let e = KeyframeMap::from_bytes(&bad, 2).expect_err("a NaN georeference");
+        assert!(e.contains("georeference"), "{e}");
     }
 }

@@ -16,7 +16,13 @@
 //!   refused (fitness over the threshold, or a correction over 1 m or 10° from the
 //!   prediction) keeps the last correction; `lost_after` refusals in a row and the system
 //!   searches again. A pose is *localised* while the last `lost_after` sweeps include an
-//!   accepted registration.
+//!   accepted registration;
+//! - a GNSS prior (issue 47), where the map was made with GNSS and saved its georeference:
+//!   the latest fix, carried into the map, limits the global search to the keyframes within
+//!   three standard deviations of it (the fix's own σ and the georeference's, combined), as
+//!   a position prior gates place recognition (e.g. RTAB-Map's `Rtabmap/LoopGPS`, which
+//!   drops loop candidates farther from the GPS position than a radius). No keyframe within
+//!   it and the search finds nothing.
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
@@ -41,6 +47,10 @@ pub struct LocalizerConfig {
     pub max_correction_rad: f64,
     /// Refused registrations in a row after which the place is searched for again.
     pub lost_after: usize,
+    /// The standard deviation of a map's georeference, m, combined with a fix's own in a
+    /// GNSS prior: the alignment's heading error turns the map about its origin (1° over a
+    /// 60 m block is 1 m).
+    pub gnss_georeference_sigma_m: f64,
 }
 
 impl Default for LocalizerConfig {
@@ -53,6 +63,7 @@ impl Default for LocalizerConfig {
             max_correction_m: 1.0,
             max_correction_rad: 10f64.to_radians(),
             lost_after: 10,
+            gnss_georeference_sigma_m: 1.0,
         }
     }
 }
@@ -78,6 +89,9 @@ pub struct MapLocalizer {
     since_accepted: Option<usize>,
     /// The submap last built: its keyframes and ICP target.
     submap: Option<(Vec<usize>, IcpTarget)>,
+    /// The latest GNSS prior: the sensor's horizontal position in the map and the radius
+    /// the global search keeps, m.
+    gnss_prior: Option<(Vector3<f64>, f64)>,
     /// Global searches made and accepted, for the plugin's summary.
     pub searches: usize,
     pub relocalizations: usize,
@@ -96,6 +110,7 @@ impl MapLocalizer {
             map_from_odom: None,
             since_accepted: None,
             submap: None,
+            gnss_prior: None,
             searches: 0,
             relocalizations: 0,
         }
@@ -104,6 +119,13 @@ impl MapLocalizer {
     /// Starts from a guess of the sensor's pose in the map at odometry `odom_from_sensor`.
     pub fn guess(&mut self, map_from_sensor: &Isometry3<f64>, odom_from_sensor: &Isometry3<f64>) {
         self.map_from_odom = Some(map_from_sensor * odom_from_sensor.inverse());
+    }
+
+    /// A GNSS prior for the global search: the sensor's position in the map (a fix carried
+    /// in by the map's georeference) and its horizontal standard deviation, m; the search
+    /// keeps the keyframes within three of them.
+    pub fn gnss_prior(&mut self, sensor_in_map: &Vector3<f64>, sigma_m: f64) {
+        self.gnss_prior = Some((*sensor_in_map, 3.0 * sigma_m));
     }
 
     pub fn keyframes(&self) -> usize {
@@ -203,7 +225,18 @@ impl MapLocalizer {
     fn search(&mut self, source: &[Vector3<f64>], points: &[[f32; 3]]) -> Option<Isometry3<f64>> {
         self.searches += 1;
         let query = ScanContext::new(points, &self.cfg.scan_context);
-        let m = self.contexts.search(&query, 0)?;
+        let m = match self.gnss_prior {
+            Some((at, radius)) => {
+                let keyframes = &self.map.keyframes;
+                self.contexts.search_among(&query, |i| {
+                    (keyframes[i].map_from_sensor.translation.vector - at)
+                        .xy()
+                        .norm()
+                        <= radius
+                })?
+            }
+            None => self.contexts.search(&query, 0)?,
+        };
         let keyframe = self.map.keyframes[m.index].map_from_sensor;
         let guess = keyframe * UnitQuaternion::from_euler_angles(0.0, 0.0, m.yaw_rad);
         let found = self.register(source, &guess)?;
@@ -250,6 +283,7 @@ mod tests {
 
     fn corridor_map() -> KeyframeMap {
         KeyframeMap {
+            map_from_enu: None,
             keyframes: (0..=55)
                 .map(|i| MapKeyframe {
                     map_from_sensor: Isometry3::translation(f64::from(i), 0.0, 0.0),
@@ -276,5 +310,45 @@ mod tests {
         let error = (l.map_from_sensor.translation.vector - Vector3::new(x, 0.0, 0.0)).norm();
         assert!(error < 0.05, "{error} m off at x = {x}");
         assert!(localizer.relocalizations >= 1);
+    }
+
+    /// A GNSS prior limits the global search to the keyframes around the fix: at the true
+    /// place it localises as without one; 40 m off, it never localises at the true place;
+    /// off the map, it searches and finds nothing.
+    #[test]
+    fn a_gnss_prior_limits_the_global_search() {
+        let drive = |prior: Option<(f64, f64)>| {
+            let mut localizer = MapLocalizer::new(corridor_map(), LocalizerConfig::default());
+            let mut out = Vec::new();
+            for step in 0..20 {
+                let x = 50.3 + 0.2 * f64::from(step);
+                if let Some((px, sigma)) = prior {
+                    localizer
+                        .gnss_prior(&Vector3::new(px + 0.2 * f64::from(step), 0.0, 0.0), sigma);
+                }
+                let odom = Isometry3::translation(x - 50.3, 0.0, 0.0);
+                out.push((x, localizer.update(&odom, &scan(x))));
+            }
+            (out, localizer.searches, localizer.relocalizations)
+        };
+        let (at_truth, _, found) = drive(Some((50.3, 0.5)));
+        let (x, l) = at_truth.last().copied().expect("steps");
+        assert!(l.localized && found >= 1, "{l:?}");
+        assert!((l.map_from_sensor.translation.vector - Vector3::new(x, 0.0, 0.0)).norm() < 0.05);
+
+        let (elsewhere, ..) = drive(Some((10.3, 1.0)));
+        for (x, l) in &elsewhere {
+            assert!(
+                !l.localized || (l.map_from_sensor.translation.x - x).abs() > 3.0,
+                "localised at the true place {x} against a prior 40 m away: {l:?}"
+            );
+        }
+
+        let (off_map, searches, found) = drive(Some((200.0, 1.0)));
+        assert!(off_map.iter().all(|(_, l)| !l.localized));
+        assert!(
+            searches >= 1 && found == 0,
+            "{searches} searches, {found} found"
+        );
     }
 }

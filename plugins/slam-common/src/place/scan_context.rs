@@ -219,11 +219,19 @@ impl ScanContextDatabase {
     /// threshold.
     pub fn search(&self, query: &ScanContext, exclude_recent: usize) -> Option<PlaceMatch> {
         let searchable = self.contexts.len().saturating_sub(exclude_recent);
-        if searchable == 0 {
-            return None;
-        }
+        self.search_among(query, |i| i < searchable)
+    }
+
+    /// [`ScanContextDatabase::search`] over the places `allowed` keeps (a prior on where the
+    /// query may be: a GNSS fix, say).
+    pub fn search_among(
+        &self,
+        query: &ScanContext,
+        allowed: impl Fn(usize) -> bool,
+    ) -> Option<PlaceMatch> {
         let key = query.ring_key();
-        let mut nearest: Vec<(f64, usize)> = (0..searchable)
+        let mut nearest: Vec<(f64, usize)> = (0..self.contexts.len())
+            .filter(|&i| allowed(i))
             .map(|i| {
                 let d: f64 = key
                     .iter()
