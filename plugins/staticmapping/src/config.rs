@@ -258,9 +258,9 @@ impl Default for LoopConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct GpsConfig {
     /// `use_gps` (default `false`): ask for the GNSS receiver (the plugin's requirements
-    /// name it only then) and add a GNSS prior per submap. It needs an IMU that reports its
-    /// orientation (the rig's imu `reports_orientation = 1`), whose heading aligns the
-    /// fixes' east-north-up frame with the map ([`crate::gnss`] says why).
+    /// name it only then) and add a GNSS prior per submap. The fixes' east-north-up frame
+    /// is tied to the map by a transform solved from the track itself, as the original's
+    /// `SolveGpsCorrdAlone` ([`crate::gnss`]): no IMU orientation is needed.
     pub use_gps: bool,
     /// `gps_factor_init_num` (25): submaps with a fix cached before any prior is added.
     pub gps_factor_init_num: usize,

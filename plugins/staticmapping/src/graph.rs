@@ -5,7 +5,8 @@
 
 use nalgebra::{Isometry3, Vector3, Vector6};
 use slam_common::factor_graph::backend::{
-    self, Backend, BackendConfig, BackendError, Factor, Profiled, Robust, Scope, Value, Var,
+    self, Backend, BackendConfig, BackendError, Factor, FactorId, Profiled, Robust, Scope, Value,
+    Var,
 };
 
 const PRIOR_SIGMA: f64 = 1e-6;
@@ -93,24 +94,37 @@ impl SubmapGraph {
     }
 
     /// Adds position priors (`submap`, the submap's origin in the graph's frame) of `sigma_m`
-    /// on every axis and updates with `scope`; nothing without priors.
+    /// on every axis and updates with `scope`; nothing without priors. The factors' ids, in
+    /// order.
     pub fn add_positions(
         &mut self,
         priors: &[(usize, Vector3<f64>)],
         sigma_m: f64,
         scope: Scope,
-    ) -> Result<(), BackendError> {
+    ) -> Result<Vec<FactorId>, BackendError> {
         if priors.is_empty() {
-            return Ok(());
+            return Ok(Vec::new());
         }
-        for &(k, position) in priors {
-            self.backend.add(Factor::Position {
-                key: k as u64,
-                position,
-                sigmas: Vector3::repeat(sigma_m),
-            })?;
+        let ids = priors
+            .iter()
+            .map(|&(k, position)| {
+                self.backend.add(Factor::Position {
+                    key: k as u64,
+                    position,
+                    sigmas: Vector3::repeat(sigma_m),
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        self.backend.update(scope)?;
+        Ok(ids)
+    }
+
+    /// Removes factors (GNSS priors to be added again), without an update.
+    pub fn remove_factors(&mut self, ids: &[FactorId]) {
+        for &id in ids {
+            let removed = self.backend.remove(id);
+            debug_assert!(removed, "factor {id:?} was in the graph");
         }
-        self.backend.update(scope).map(|_| ())
     }
 
     /// The current estimate of submap `k`.

@@ -2,15 +2,16 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, Gnss as GnssMessage, Imu, MapStart, Mode, Parameters, PluginError, PointCloud, Pose,
-    PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
+    Event, EventKind, Gnss as GnssMessage, Imu, MapStart, Mode, Parameters, PluginError,
+    PointCloud, Pose, PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
+    Stages,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 use slam_common::maps::keyframes::{
-    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe,
+    KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION, KeyframeMap, MapKeyframe, reads_version,
 };
 use slam_common::maps::localizer::MapLocalizer;
 use slam_common::place::m2dp::{self, Descriptor, M2dpConfig, Rings};
@@ -37,7 +38,7 @@ pub struct StaticMapping {
     /// Localisation mode (`vinebench localize`): online, sweep by sweep.
     localizing: Option<Box<Localizing>>,
     /// GNSS priors per submap (`[gps] use_gps` and a receiver in the rig): the epochs,
-    /// the IMU's headings at the sweeps, and the original's gate (`gnss.rs`).
+    /// the original's gate, the ENU-to-map transform solved from the track (`gnss.rs`).
     gnss: Option<SubmapGnss>,
 }
 
@@ -48,6 +49,12 @@ pub struct StaticMapping {
 struct Localizing {
     front_end: frontend::FrontEnd,
     localizer: MapLocalizer,
+    /// The map's georeference `map_from_enu` and the antenna's horizontal distance from
+    /// the lidar, m, when the map was made with GNSS and a receiver feeds this run: each
+    /// fix a prior for the global search.
+    gnss_prior: Option<(Isometry3<f64>, f64)>,
+    /// Fixes refused (`gnss_rejected`).
+    events: Vec<Event>,
     guess: Option<Isometry3<f64>>,
     status: PoseStatus,
     trajectory: Vec<Pose>,
@@ -69,12 +76,16 @@ pub struct BuildReport {
     pub loops_accepted: usize,
     pub loop_edges_added: usize,
     pub loops_rejected: usize,
-    /// Submaps with a GNSS position at their stamp, priors added, the submap whose fix
-    /// aligned the fixes' frame and the one that opened the gate (`gnss::GnssCounts`).
+    /// Submaps with a GNSS position at their stamp, priors in the graph, the submap that
+    /// opened the gate (the first solve of the ENU-to-map transform), the solves, the
+    /// rebuilds of the priors through a re-solved transform, and the last solve's RMS
+    /// residual, m (`gnss::GnssCounts`).
     pub gnss_submaps_with_fix: usize,
     pub gnss_priors: usize,
-    pub gnss_aligned_at: Option<usize>,
     pub gnss_opened_at: Option<usize>,
+    pub gnss_solves: usize,
+    pub gnss_rebuilds: usize,
+    pub gnss_last_rms_m: f64,
     pub front_end_s: f64,
     pub submaps_s: f64,
     pub m2dp_s: f64,
@@ -108,8 +119,10 @@ impl BuildReport {
             loops_rejected: loops.rejected,
             gnss_submaps_with_fix: gnss.submaps_with_fix,
             gnss_priors: gnss.priors,
-            gnss_aligned_at: gnss.aligned_at,
             gnss_opened_at: gnss.opened_at,
+            gnss_solves: gnss.solves,
+            gnss_rebuilds: gnss.rebuilds,
+            gnss_last_rms_m: gnss.last_rms_m,
             front_end_s: stages.total("front_end"),
             submaps_s: stages.total("submaps"),
             m2dp_s: stages.total("m2dp"),
@@ -290,6 +303,7 @@ impl StaticMapping {
                         .collect(),
                 })
                 .collect(),
+            map_from_enu: self.gnss.as_ref().and_then(SubmapGnss::map_from_enu),
         };
         SlamOutput {
             trajectory,
@@ -298,7 +312,7 @@ impl StaticMapping {
             events,
             saved_map: Some(SavedMap {
                 format: KEYFRAME_MAP_FORMAT.into(),
-                version: KEYFRAME_MAP_VERSION,
+                version: saved.version(),
                 bytes: saved.to_bytes(),
             }),
         }
@@ -335,16 +349,27 @@ impl SlamSystem for StaticMapping {
     /// localiser lio-sam uses, so that the two lidar systems differ by their maps and their
     /// odometry, not by the localiser.
     fn localize(config_toml: &str, rig: &Rig, start: &MapStart<'_>) -> Result<Self, PluginError> {
-        if (start.format, start.format_version) != (KEYFRAME_MAP_FORMAT, KEYFRAME_MAP_VERSION) {
+        if start.format != KEYFRAME_MAP_FORMAT || !reads_version(start.format_version) {
             return Err(PluginError::new(format!(
-                "staticmapping reads {KEYFRAME_MAP_FORMAT} version {KEYFRAME_MAP_VERSION} maps, not {} version {}",
+                "staticmapping reads {KEYFRAME_MAP_FORMAT} versions 1 to {KEYFRAME_MAP_VERSION} maps, not {} version {}",
                 start.format, start.format_version
             )));
         }
-        let map = KeyframeMap::from_bytes(start.map).map_err(PluginError::new)?;
+        let map =
+            KeyframeMap::from_bytes(start.map, start.format_version).map_err(PluginError::new)?;
         let mut system = Self::new(config_toml, rig)?;
-        // The saved map is the reference: no GNSS prior moves it.
-        system.gnss = None;
+        // The saved map is the reference: no GNSS prior moves it; a map made with GNSS
+        // keeps its georeference, and with a receiver now each fix is a prior for the
+        // global search, as lio-sam's.
+        let gnss_prior = match (map.map_from_enu, system.gnss.take()) {
+            (Some(map_from_enu), Some(_)) => rig.first(SensorKind::Gnss).map(|receiver| {
+                let lever = (system.lidar_from_base * receiver.base_from_sensor())
+                    .translation
+                    .vector;
+                (map_from_enu, lever.xy().norm())
+            }),
+            _ => None,
+        };
         let cfg = &system.cfg;
         let guess = start
             .initial_guess
@@ -360,6 +385,8 @@ impl SlamSystem for StaticMapping {
             )
             .without_history(),
             localizer: MapLocalizer::new(map, cfg.localization.clone()),
+            gnss_prior,
+            events: Vec::new(),
             guess,
             status: PoseStatus::Searching,
             trajectory: Vec::new(),
@@ -393,21 +420,11 @@ impl SlamSystem for StaticMapping {
                 None
             }
             (true, Some(receiver)) => {
-                if imu.and_then(|imu| imu.intrinsics.get("reports_orientation")) != Some(&1.0) {
-                    return Err(PluginError::new(
-                        "staticmapping: [gps] use_gps needs the IMU's orientation (the world's \
-                         [sensors.imu] reports_orientation = true): its heading aligns the \
-                         fixes' east-north-up frame with the map",
-                    ));
-                }
+                // No IMU orientation needed: the transform is solved from the track.
                 let lidar_from_antenna = (base_from_lidar.inverse() * receiver.base_from_sensor())
                     .translation
                     .vector;
-                Some(SubmapGnss::new(
-                    cfg.gps.clone(),
-                    lidar_from_antenna,
-                    imu_from_lidar,
-                ))
+                Some(SubmapGnss::new(cfg.gps.clone(), lidar_from_antenna))
             }
         };
         Ok(Self {
@@ -430,15 +447,35 @@ impl SlamSystem for StaticMapping {
                 rate_rps: Vector3::from(imu.gyro_rps),
             });
         }
-        if let (Some(g), Some(q)) = (&mut self.gnss, imu.orientation()) {
-            g.orientation(imu.stamp_ns, q);
-        }
         Ok(None)
     }
 
     /// Keeps the epoch for the submaps' GNSS priors; refuses one that cannot be used with
     /// a `gnss_rejected` event (never an error). Ignored without `[gps] use_gps`.
     fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
+        if let Some(l) = &mut self.localizing {
+            if let Some((map_from_enu, offset_m)) = l.gnss_prior {
+                match (gnss.problem(), gnss.position(), gnss.covariance()) {
+                    (None, Some(p), Some(c)) => {
+                        let sigma = (c[(0, 0)].max(c[(1, 1)])
+                            + self.cfg.localization.gnss_georeference_sigma_m.powi(2)
+                            + offset_m * offset_m)
+                            .sqrt();
+                        let at = map_from_enu * Point3::from(p);
+                        l.localizer.gnss_prior(&at.coords, sigma);
+                    }
+                    (problem, ..) => l.events.push(Event::new(
+                        gnss.stamp_ns,
+                        EventKind::GnssRejected,
+                        format!(
+                            "staticmapping: GNSS fix refused as a localisation prior: {}",
+                            problem.unwrap_or("not usable")
+                        ),
+                    )),
+                }
+            }
+            return Ok(None);
+        }
         if let Some(g) = &mut self.gnss {
             g.push(gnss);
         }
@@ -448,9 +485,6 @@ impl SlamSystem for StaticMapping {
     fn on_point_cloud(&mut self, cloud: &PointCloud<'_>) -> Result<Option<Pose>, PluginError> {
         let sweep = input::filter(cloud.stamp_ns, cloud.points, &self.cfg.input, &mut self.rng);
         let Some(l) = &mut self.localizing else {
-            if let Some(g) = &mut self.gnss {
-                g.sweep(sweep.stamp_ns);
-            }
             self.sweeps.push(sweep);
             return Ok(None);
         };
@@ -490,19 +524,42 @@ impl SlamSystem for StaticMapping {
             );
             return Ok(SlamOutput {
                 trajectory: std::mem::take(&mut l.trajectory),
+                events: std::mem::take(&mut l.events),
                 ..SlamOutput::default()
             });
         }
         let (output, report) = self.build()?;
-        if self.gnss.is_some() {
+        if let Some(g) = &self.gnss {
             eprintln!(
-                "staticmapping: {} GNSS priors ({} submaps with a fix; aligned at submap {:?}, \
-                 gate opened at submap {:?})",
+                "staticmapping: {} GNSS priors ({} submaps with a fix; gate opened at submap \
+                 {:?}; {} solves of the ENU-to-map transform, {} rebuilds of the priors, last \
+                 RMS residual {:.3} m)",
                 report.gnss_priors,
                 report.gnss_submaps_with_fix,
-                report.gnss_aligned_at,
-                report.gnss_opened_at
+                report.gnss_opened_at,
+                report.gnss_solves,
+                report.gnss_rebuilds,
+                report.gnss_last_rms_m,
             );
+            if let Some((first, last)) = g.solves() {
+                let angles = |t: &Isometry3<f64>| {
+                    let (yaw, tilt) = crate::gnss::yaw_and_tilt(&t.rotation);
+                    format!(
+                        "yaw {:.2}°, tilt {:.2}°",
+                        yaw.to_degrees(),
+                        tilt.to_degrees()
+                    )
+                };
+                let moved = first.inverse() * last;
+                eprintln!(
+                    "staticmapping: enu_from_map first solve {}, last {}: moved {:.3}° and \
+                     {:.3} m",
+                    angles(&first),
+                    angles(&last),
+                    moved.rotation.angle().to_degrees(),
+                    moved.translation.vector.norm()
+                );
+            }
         }
         if let Some(path) = &self.cfg.timing_json {
             let text = serde_json::to_string_pretty(&report)
@@ -596,22 +653,22 @@ mod tests {
     }
 
     #[test]
-    fn use_gps_needs_the_imus_heading_and_does_without_a_receiver() {
-        // Guards the set-up: the alignment needs the IMU's orientation (an error saying
-        // so), a world without a receiver leaves GNSS off, and the lever arm is the
-        // antenna's mount seen from the (yawed) lidar.
-        let err = StaticMapping::new(GPS_ON, &rig(false, true)).expect_err("no orientation");
-        assert!(err.0.contains("reports_orientation"), "{err}");
+    fn use_gps_needs_no_imu_heading_and_does_without_a_receiver() {
+        // Guards the set-up: the transform is solved from the track, so an IMU that
+        // reports no orientation is enough; a world without a receiver leaves GNSS off;
+        // the lever arm is the antenna's mount seen from the (yawed) lidar.
+        for orientation in [false, true] {
+            let with = StaticMapping::new(GPS_ON, &rig(orientation, true)).expect("receiver");
+            let lever = with.gnss.as_ref().expect("gnss").lidar_from_antenna();
+            assert!(
+                (lever - Vector3::new(0.0, 0.7, 0.7)).norm() < 1e-12,
+                "{lever}"
+            );
+        }
         let without = StaticMapping::new(GPS_ON, &rig(true, false)).expect("no receiver");
         assert!(without.gnss.is_none());
         let off = StaticMapping::new("", &rig(false, true)).expect("gps off");
         assert!(off.gnss.is_none());
-        let with = StaticMapping::new(GPS_ON, &rig(true, true)).expect("receiver");
-        let lever = with.gnss.as_ref().expect("gnss").lidar_from_antenna();
-        assert!(
-            (lever - Vector3::new(0.0, 0.7, 0.7)).norm() < 1e-12,
-            "{lever}"
-        );
     }
 
     /// A sweep of a box room 12 m across with a floor, seen from its middle.
@@ -644,19 +701,21 @@ mod tests {
     }
 
     #[test]
-    fn broken_fixes_are_events_and_a_good_one_aligns_the_first_submap() {
+    fn broken_fixes_are_events_and_good_ones_give_the_first_submap_a_position() {
         // Guards on_gnss and the build: NaN, no fix and a zero covariance come out as
         // gnss_rejected events, never an error or a panic; the fixes either side of the
-        // first sweep give its submap a position and the alignment; without `[gps]`
-        // fixes are ignored.
-        let run = |config: &str| {
-            let mut system = StaticMapping::new(config, &rig(true, true)).expect("system");
+        // first sweep give its submap a position, cached (one submap opens no gate, so
+        // nothing is solved); without `[gps]` fixes are ignored. The IMU's orientation,
+        // reported with a heading error of 0.3 rad or not at all, changes nothing.
+        let run = |config: &str, orientation: Option<[f64; 4]>| {
+            let mut system =
+                StaticMapping::new(config, &rig(orientation.is_some(), true)).expect("system");
             let points = room();
             let imu = |stamp_ns: i64| Imu {
                 stamp_ns,
                 accel_mps2: [0.0, 0.0, 9.81],
                 gyro_rps: [0.0; 3],
-                orientation_xyzw: [0.0, 0.0, 0.0, 1.0],
+                orientation_xyzw: orientation.unwrap_or([0.0; 4]),
             };
             let gnss = |s: &mut StaticMapping, e: GnssMessage| s.on_gnss(&e).expect("on_gnss");
             gnss(
@@ -689,14 +748,24 @@ mod tests {
             }
             system.build().expect("build")
         };
-        let (output, report) = run(GPS_ON);
+        let (h, w) = (0.15f64.sin(), 0.15f64.cos());
+        let (output, report) = run(GPS_ON, Some([0.0, 0.0, h, w]));
         let kinds: Vec<EventKind> = output.events.iter().map(|e| e.kind).collect();
         assert_eq!(kinds, vec![EventKind::GnssRejected; 3]);
         assert_eq!(report.submaps, 1);
         assert_eq!(report.gnss_submaps_with_fix, 1);
-        assert_eq!(report.gnss_aligned_at, Some(0));
-        assert_eq!((report.gnss_priors, report.gnss_opened_at), (0, None));
-        let (output, report) = run("");
+        assert_eq!(
+            (
+                report.gnss_priors,
+                report.gnss_opened_at,
+                report.gnss_solves
+            ),
+            (0, None, 0)
+        );
+        let (without, _) = run(GPS_ON, None);
+        assert_eq!(without.trajectory, output.trajectory);
+        assert_eq!(without.events.len(), 3);
+        let (output, report) = run("", Some([0.0, 0.0, 0.0, 1.0]));
         assert!(output.events.is_empty());
         assert_eq!(report.gnss_submaps_with_fix, 0);
     }
