@@ -6,7 +6,11 @@
 # Systems: lio-sam in its own saved keyframes; rtabmap in its saved locations (its
 # localisation mode); staticmapping in its saved submaps; orbslam2 in its keyframes and map
 # points (ORB-SLAM2's localisation mode); amcl in the world's surveyed grid of the block at stage 2 (what a lab
-# surveys once), globally and (amcl-guess) told its start.
+# surveys once), globally and (amcl-guess) told its start. lio-sam-gnss (issue 47): lio-sam
+# mapping with `[gps] enabled` (LIO-SAM's defaults: the map georeferenced, no GPS factor on
+# these routes) in the same worlds with an RTK receiver and the IMU's orientation (an
+# AHRS's error), localising with each fix as a prior for its global search; not in the
+# default list (run it by name).
 #   bash scripts/study-localization.sh [SYSTEM...]   run (or resume) the runs, all by default
 #   bash scripts/study-localization.sh --save        keep the finished runs' small files in git
 #   bash scripts/study-localization.sh --table       write docs/localization/study.md
@@ -27,20 +31,40 @@ esac
 vb=${VINEBENCH:-target/release/vinebench}
 all=(lio-sam amcl amcl-guess rtabmap staticmapping orbslam2)
 
-world() { # world STAGE VARIATION -> the path of the paper's world at that stage and variation
-    local file="$results/worlds/stage$1-var$2.toml"
+world() { # world STAGE VARIATION [gnss] -> the path of the paper's world at that stage and
+           # variation (with `gnss`: an RTK receiver and the IMU's orientation, Xsens MTi-30)
+    local file="$results/worlds/stage$1-var$2${3:+-$3}.toml"
     if [ ! -f "$file" ]; then
         mkdir -p "$results/worlds"
-        python3 - "$1" "$2" "$file" <<'EOF'
+        python3 - "$1" "$2" "$file" "${3:-}" <<'EOF'
 import re, sys
-stage, var, out = sys.argv[1:]
+stage, var, out, gnss = sys.argv[1:]
 text = open("configs/paper-world.toml").read()
 text = re.sub(r"(?m)^growth_stage = .*$", f"growth_stage = {float(stage)}", text)
 text = re.sub(r"(?m)^plant_variation = .*$", f"plant_variation = {float(var)}", text)
+if gnss:
+    text = text.replace("[sensors.imu]", "[sensors.imu]\nreports_orientation = true\n"
+                        "orientation_roll_pitch_sigma_rad = 0.0087\n"
+                        "orientation_yaw_sigma_rad = 0.0175", 1)
+    text += '\n[sensors.gnss]\nprofile = "rtk"\n'
 open(out, "w").write(text)
 EOF
     fi
     echo "$file"
+}
+
+# A system of the study: its plugin, its parameters, its worlds' extra.
+plugin_of() { case $1 in lio-sam-gnss) echo lio-sam ;; *) echo "$1" ;; esac; }
+extra_of() { case $1 in lio-sam-gnss) echo gnss ;; *) echo "" ;; esac; }
+params_of() { # SYSTEM -> its --plugin-config arguments
+    case $1 in
+        lio-sam-gnss)
+            local f="$results/lio-sam-gnss.toml"
+            mkdir -p "$results"
+            printf '[gps]\nenabled = true\n' > "$f"
+            echo "--plugin-config $f" ;;
+        *) echo "" ;;
+    esac
 }
 
 done_run() { [ -f "$1/metrics.json" ] || [ -f "$kept/${1#"$results"/}/metrics.json" ]; }
@@ -50,8 +74,10 @@ map_run() { # map_run SYSTEM VAR SEED -> the mapping run's folder
     if ! [ -f "$dir/s3/$1/metrics.json" ]; then
         rm -rf "$dir"
         # Every system with its defaults, as the paper bench runs it (configs/paper.toml).
-        nice -n 19 "$vb" run --world "$(world 2 "$2")" --profile "$profile" --scenario s3 \
-            --seed "$3" --plugin "$1" --out "$dir" >&2
+        # shellcheck disable=SC2046
+        nice -n 19 "$vb" run --world "$(world 2 "$2" "$(extra_of "$1")")" --profile "$profile" \
+            --scenario s3 --seed "$3" --plugin "$(plugin_of "$1")" $(params_of "$1") \
+            --label "$1" --out "$dir" >&2
     fi
     echo "$dir/s3/$1"
 }
@@ -79,7 +105,8 @@ print(f"{x},{y},{math.atan2(2*(qw*qz+qx*qy), 1-2*(qy*qy+qz*qz))},0.5,0.26")' "$g
         *) map=(--map "$(map_run "$system" "$var" "$seed")") ;;
     esac
     echo "localize $system $name" >&2
-    nice -n 19 "$vb" localize "${map[@]}" --world "$(world "$stage" "$var")" --profile "$profile" \
+    nice -n 19 "$vb" localize "${map[@]}" --world "$(world "$stage" "$var" "$(extra_of "$system")")" \
+        --profile "$profile" \
         --scenario s1 --seed "$seed" --label "$system" --out "$out" --allow-failures "$@" >&2
     printf '{"system": "%s", "variation": %s, "seed": %s, "stage": %s, "kidnap": %s}\n' \
         "$system" "$var" "$seed" "$stage" "$([ $# -gt 0 ] && echo true || echo false)" \
