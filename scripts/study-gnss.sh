@@ -18,19 +18,8 @@ kept=docs/gnss/runs
 # VINEBENCH: another build's vinebench (its plugins beside it), used as it is, not rebuilt.
 vb=${VINEBENCH:-target/release/vinebench}
 
-save() {
-    for dir in "$results"/*/runs/*/; do
-        [ -f "$dir/cell.json" ] || continue
-        world=$(basename "$(dirname "$(dirname "$dir")")")
-        dest="$kept/$world/$(basename "$dir")"
-        [ -f "$dest/cell.json" ] && continue
-        mkdir -p "$dest"
-        for f in cell.json metrics.json timing.json; do
-            [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
-        done
-    done
-    echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"
-}
+source scripts/studylib.sh
+save() { keep_sweep_runs "$results" "$kept"; }
 
 case "${1:-}" in
 --save) save; exit 0 ;;

@@ -21,19 +21,8 @@ vb=${VINEBENCH:-target/release/vinebench}
 all=(ladder-paper-world factors-paper-world ladder-paper-world-camera factors-paper-world-camera
      ladder-paper-world-orbslam3 factors-paper-world-orbslam3 transport-paper-world)
 
-save() {
-    for dir in "$results"/*/runs/*/; do
-        [ -f "$dir/cell.json" ] || continue
-        world=$(basename "$(dirname "$(dirname "$dir")")")
-        dest="$kept/$world/$(basename "$dir")"
-        [ -f "$dest/cell.json" ] && continue
-        mkdir -p "$dest"
-        for f in cell.json metrics.json timing.json; do
-            [ -f "$dir/$f" ] && cp "$dir/$f" "$dest/"
-        done
-    done
-    echo "kept: $(find "$kept" -name cell.json 2>/dev/null | wc -l) runs in $kept"
-}
+source scripts/studylib.sh
+save() { keep_sweep_runs "$results" "$kept"; }
 
 table() {
     python3 scripts/study-realism.py --kept "$kept" --out docs/realism/sensitivity.md \

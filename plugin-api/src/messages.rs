@@ -236,4 +236,18 @@ impl Gnss {
             None
         }
     }
+
+    /// The `gnss_rejected` event a plugin named `plugin` reports for this fix, saying why
+    /// (`problem`: [`Gnss::problem`]'s, or the plugin's own reason).
+    pub fn rejected(&self, plugin: &str, problem: &str) -> crate::system::Event {
+        crate::system::Event::new(
+            self.stamp_ns,
+            crate::system::EventKind::GnssRejected,
+            format!(
+                "{plugin}: GNSS fix ({}, {} satellites) refused: {problem}",
+                self.status.name(),
+                self.satellites
+            ),
+        )
+    }
 }

@@ -93,16 +93,7 @@ pub fn usable(gnss: &GnssMessage, events: &mut Vec<Event>) -> Option<Fix> {
             covariance_enu_m2,
         }),
         (problem, ..) => {
-            events.push(Event::new(
-                gnss.stamp_ns,
-                EventKind::GnssRejected,
-                format!(
-                    "lio-sam: GNSS fix ({}, {} satellites) refused: {}",
-                    gnss.status.name(),
-                    gnss.satellites,
-                    problem.unwrap_or("not usable")
-                ),
-            ));
+            events.push(gnss.rejected("lio-sam", problem.unwrap_or("not usable")));
             None
         }
     }

@@ -73,7 +73,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector2, Vector3, Vector6};
-use plugin_api::{Event, EventKind, Gnss as GnssMessage};
+use plugin_api::{Event, Gnss as GnssMessage};
 use slam_common::gnss::{Fix, body_in_frame, yaw};
 
 use crate::graph::ANCHOR_SIGMA;
@@ -197,15 +197,7 @@ impl GpsPriors {
                 self.settle(false)
             }
             Err(problem) => {
-                events.push(Event::new(
-                    msg.stamp_ns,
-                    EventKind::GnssRejected,
-                    format!(
-                        "rtabmap: GNSS fix ({}, {} satellites) refused: {problem}",
-                        msg.status.name(),
-                        msg.satellites
-                    ),
-                ));
+                events.push(msg.rejected("rtabmap", problem));
                 None
             }
         }
@@ -309,7 +301,7 @@ impl GpsPriors {
 #[cfg(test)]
 mod tests {
     use nalgebra::{Translation3, UnitQuaternion};
-    use plugin_api::GnssStatus;
+    use plugin_api::{EventKind, GnssStatus};
     use slam_common::factor_graph::backend::BackendConfig;
 
     use super::*;

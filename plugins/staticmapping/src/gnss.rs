@@ -94,7 +94,7 @@
 use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
-use plugin_api::{Event, EventKind, Gnss as GnssMessage};
+use plugin_api::{Event, Gnss as GnssMessage};
 use slam_common::factor_graph::backend::{BackendError, FactorId, Scope};
 pub use slam_common::gnss::Fix;
 use slam_common::gnss::body_in_frame;
@@ -271,16 +271,7 @@ impl Epochs {
                 covariance_enu_m2,
             }),
             (problem, ..) => {
-                events.push(Event::new(
-                    gnss.stamp_ns,
-                    EventKind::GnssRejected,
-                    format!(
-                        "staticmapping: GNSS fix ({}, {} satellites) refused: {}",
-                        gnss.status.name(),
-                        gnss.satellites,
-                        problem.unwrap_or("not usable")
-                    ),
-                ));
+                events.push(gnss.rejected("staticmapping", problem.unwrap_or("not usable")));
                 None
             }
         };
@@ -589,7 +580,7 @@ impl SubmapGnss {
 #[cfg(test)]
 mod tests {
     use nalgebra::Matrix3;
-    use plugin_api::GnssStatus;
+    use plugin_api::{EventKind, GnssStatus};
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use slam_common::factor_graph::backend::BackendConfig;

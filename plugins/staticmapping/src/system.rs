@@ -2,9 +2,8 @@ use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use plugin_api::{
-    Event, EventKind, Gnss as GnssMessage, Imu, MapStart, Mode, Parameters, PluginError,
-    PointCloud, Pose, PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem,
-    Stages,
+    Event, Gnss as GnssMessage, Imu, MapStart, Mode, Parameters, PluginError, PointCloud, Pose,
+    PoseStatus, Requirements, Rig, SavedMap, SensorKind, SlamOutput, SlamSystem, Stages,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -464,13 +463,9 @@ impl SlamSystem for StaticMapping {
                         let at = map_from_enu * Point3::from(p);
                         l.localizer.gnss_prior(&at.coords, sigma);
                     }
-                    (problem, ..) => l.events.push(Event::new(
-                        gnss.stamp_ns,
-                        EventKind::GnssRejected,
-                        format!(
-                            "staticmapping: GNSS fix refused as a localisation prior: {}",
-                            problem.unwrap_or("not usable")
-                        ),
+                    (problem, ..) => l.events.push(gnss.rejected(
+                        "staticmapping (a localisation prior)",
+                        problem.unwrap_or("not usable"),
                     )),
                 }
             }
