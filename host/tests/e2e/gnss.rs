@@ -211,8 +211,8 @@ fn drifting_world(dir: &Path) -> PathBuf {
 /// LIO-SAM's GPS factor on a drifting lio-sam: on S1 of the fence-less paper world (the
 /// paper's sensors, an RTK receiver added), lio-sam without GNSS loses metres along the
 /// identical rows; the same real `lio-sam.so` with `[gps]` on and `poseCovThreshold = 0` (a
-/// factor wherever LIO-SAM's other rules allow; its default 25 m² waits for a variance these
-/// routes do not reach) aligns the fixes, adds a factor every 5 m, and ends closer to the
+/// factor wherever LIO-SAM's other rules allow; its default 25 m² stops once a few factors
+/// anchor the chain) aligns the fixes, adds a factor every 5 m, and ends closer to the
 /// truth. Only a little closer: LIO-SAM floors a GPS factor's variance at 1 m² against
 /// lidar-odometry factors of 1e-4 m² per keyframe (`mapOptmization.cpp`), so a handful of
 /// factors cannot bend a drifted chain back (9.49 → 9.45 m, one run, docs/gnss); the test
