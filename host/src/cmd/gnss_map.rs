@@ -23,6 +23,7 @@ use sim::sensors::gnss::FixStatus;
 use sim::{SensorSet, SimConfig, Simulation};
 
 use crate::cmd::sim_args::parse_profile;
+use crate::report::figures::FIX_COLOURS;
 
 #[derive(Debug, Args)]
 pub struct GnssMapArgs {
@@ -73,14 +74,13 @@ impl Tally {
     }
 }
 
-/// The statuses best first, with their colours on the map.
+/// The statuses best first, with their colours on the map (the report's).
 const STATUSES: [(FixStatus, &str); 4] = [
-    (FixStatus::Fixed, "#1a9850"),
-    (FixStatus::Float, "#fdae61"),
-    (FixStatus::Single, "#d73027"),
-    (FixStatus::None, "#000000"),
+    (FixStatus::Fixed, FIX_COLOURS[0].1),
+    (FixStatus::Float, FIX_COLOURS[1].1),
+    (FixStatus::Single, FIX_COLOURS[2].1),
+    (FixStatus::None, FIX_COLOURS[3].1),
 ];
-
 pub fn run(args: &GnssMapArgs) -> anyhow::Result<()> {
     let base = SimConfig::load_as(args.world.as_deref(), args.profile)?;
     let world_name = args

@@ -464,3 +464,104 @@ mod tests {
         assert!(read_pgm(&pgm).unwrap_err().to_string().contains("g.pgm"));
     }
 }
+
+/// The colour a GNSS fix status (by name, best first) is drawn in, on the report's maps and
+/// `vinebench gnss-map`'s.
+pub const FIX_COLOURS: [(&str, &str); 4] = [
+    ("fixed", "#1a9850"),
+    ("float", "#fdae61"),
+    ("single", "#d73027"),
+    ("none", "#000000"),
+];
+
+/// A run's fix-quality map: its true route (grey) and each GNSS epoch fed to the plugin as
+/// a dot at the truth's position then, coloured by its fix status, with each status's share
+/// of the epochs in the legend. `None` without epochs.
+pub fn gnss_svg(
+    route: &[(f64, f64)],
+    epochs: &[(f64, f64, String)],
+    width_px: f64,
+) -> Option<String> {
+    use std::fmt::Write as _;
+    if epochs.is_empty() {
+        return None;
+    }
+    let points = route
+        .iter()
+        .copied()
+        .chain(epochs.iter().map(|e| (e.0, e.1)));
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (x, y) in points {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    let margin = 10.0;
+    let scale = (width_px - 2.0 * margin) / (x1 - x0).max(y1 - y0).max(1.0);
+    let height = (y1 - y0).max(1.0) * scale + 2.0 * margin + 24.0;
+    let px = |x: f64| margin + (x - x0) * scale;
+    let py = |y: f64| margin + (y1 - y) * scale;
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width_px:.0}\" height=\"{height:.0}\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n<polyline fill=\"none\" stroke=\"#bbb\" \
+         stroke-width=\"2\" points=\""
+    );
+    for &(x, y) in route {
+        let _ = write!(s, "{:.1},{:.1} ", px(x), py(y));
+    }
+    s.push_str("\"/>\n");
+    for (x, y, status) in epochs {
+        let colour = FIX_COLOURS
+            .iter()
+            .find(|(name, _)| name == status)
+            .map_or("#888", |(_, c)| c);
+        let _ = writeln!(
+            s,
+            "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{colour}\"/>",
+            px(*x),
+            py(*y)
+        );
+    }
+    let mut legend = String::new();
+    for (name, colour) in FIX_COLOURS {
+        let n = epochs.iter().filter(|e| e.2 == name).count();
+        if n > 0 {
+            let share = 100.0 * n as f64 / epochs.len() as f64;
+            let _ = write!(
+                legend,
+                " <tspan fill=\"{colour}\">● {name} {share:.1} %</tspan>"
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "<text x=\"{margin}\" y=\"{:.0}\">GNSS fix:{legend}</text>\n</svg>",
+        height - 8.0
+    );
+    Some(s)
+}
+
+#[cfg(test)]
+mod gnss_tests {
+    use super::*;
+
+    /// Three fixed epochs and one float along a route: four dots in their statuses'
+    /// colours, the legend's shares 75 % and 25 %, no share for a status never seen; no
+    /// figure without epochs.
+    #[test]
+    fn the_fix_map_colours_each_epoch_and_gives_the_shares() {
+        let route = [(0.0, 0.0), (10.0, 0.0), (10.0, 5.0)];
+        let epochs: Vec<(f64, f64, String)> = [(0.0, 0.0), (5.0, 0.0), (10.0, 0.0)]
+            .iter()
+            .map(|&(x, y)| (x, y, "fixed".to_owned()))
+            .chain([(10.0, 5.0, "float".to_owned())])
+            .collect();
+        let svg = gnss_svg(&route, &epochs, 400.0).expect("a figure");
+        assert_eq!(svg.matches("fill=\"#1a9850\"/>").count(), 3, "{svg}");
+        assert_eq!(svg.matches("fill=\"#fdae61\"/>").count(), 1, "{svg}");
+        assert!(
+            svg.contains("fixed 75.0 %") && svg.contains("float 25.0 %"),
+            "{svg}"
+        );
+        assert!(!svg.contains("single"), "{svg}");
+        assert!(gnss_svg(&route, &[], 400.0).is_none());
+    }
+}

@@ -89,6 +89,9 @@ pub struct RunDetail {
     /// The camera frames of its false loops, wrong joins and some true loops
     /// (`frames.json`); `None` when none were rendered.
     pub frames: Option<crate::results::Frames>,
+    /// Each GNSS epoch fed to the plugin at the truth's top-view position then, with its
+    /// fix status by name; `None` for a run without GNSS.
+    pub gnss: Option<Vec<(f64, f64, String)>>,
 }
 
 impl RunDetail {
@@ -295,6 +298,16 @@ fn load_run(run: &IndexedRun, folder: &RunFolder) -> anyhow::Result<LoadedRun> {
         loops,
         joins: folder.read_joins()?,
         frames: folder.read_frames()?,
+        gnss: folder.read_gnss()?.map(|epochs| {
+            epochs
+                .into_iter()
+                .filter_map(|(ns, status)| {
+                    let k = nearest(&gt.stamps, ns as f64 * 1e-9)?;
+                    let (x, y) = xy(&gt.poses[k]);
+                    Some((x, y, status))
+                })
+                .collect()
+        }),
     };
     Ok(LoadedRun {
         record,

@@ -505,6 +505,28 @@ impl RunFolder {
         std::fs::write(&path, ape.to_csv()).with_context(|| path.display().to_string())
     }
 
+    /// The GNSS epochs the plugin was fed (`gnss.csv`): each one's stamp and fix status by
+    /// name (`sim::sensors::gnss::FixStatus::name`); `None` for a run without GNSS.
+    pub fn read_gnss(&self) -> anyhow::Result<Option<Vec<(i64, String)>>> {
+        let path = self.path(files::GNSS);
+        let text = match std::fs::read_to_string(&path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(e).with_context(|| path.display().to_string()),
+        };
+        let mut epochs = Vec::new();
+        for (k, line) in text.lines().enumerate().skip(1) {
+            let parsed = line
+                .split_once(',')
+                .and_then(|(t, s)| Some((t.parse::<i64>().ok()?, s.to_owned())));
+            let Some(epoch) = parsed else {
+                anyhow::bail!("{} line {}: not stamp_ns,status", path.display(), k + 1);
+            };
+            epochs.push(epoch);
+        }
+        Ok(Some(epochs))
+    }
+
     pub fn read_groundtruth(&self) -> anyhow::Result<Trajectory> {
         Ok(eval::read_tum(self.path(files::GROUNDTRUTH))?)
     }

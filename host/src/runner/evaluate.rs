@@ -111,21 +111,18 @@ fn gnss(
     errors_m: &[f64],
 ) -> anyhow::Result<Option<crate::results::GnssMetrics>> {
     let stamps_s = &pairs.stamps;
-    let path = run.path(files::GNSS);
-    let text = match std::fs::read_to_string(&path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(e).with_context(|| path.display().to_string()),
+    let Some(named) = run.read_gnss()? else {
+        return Ok(None);
     };
-    let mut epochs = Vec::new();
-    for (k, line) in text.lines().enumerate().skip(1) {
-        let parsed = line
-            .split_once(',')
-            .and_then(|(t, s)| Some((t.parse::<i64>().ok()?, FixStatus::from_name(s)?)));
-        let Some(epoch) = parsed else {
-            anyhow::bail!("{} line {}: not stamp_ns,status", path.display(), k + 1);
+    let mut epochs = Vec::with_capacity(named.len());
+    for (stamp_ns, name) in named {
+        let Some(status) = FixStatus::from_name(&name) else {
+            anyhow::bail!(
+                "{}: {name:?} is not a fix status",
+                run.path(files::GNSS).display()
+            );
         };
-        epochs.push(epoch);
+        epochs.push((stamp_ns, status));
     }
     let Some(best) = epochs.iter().map(|e| e.1).max() else {
         return Ok(None);

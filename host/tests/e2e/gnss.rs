@@ -69,6 +69,14 @@ fn the_ekf_with_rtk_holds_where_dead_reckoning_drifts() {
         );
         ates.push(ate(&folder, "estimate.tum"));
         late.push(horizontal_rms_after(&folder, 15.0));
+        // The report's fix-quality map is there only with a receiver.
+        let report = std::fs::read_to_string(tmp.path().join(format!("ekf-{profile}/report.html")))
+            .expect("report.html");
+        assert_eq!(
+            report.contains("GNSS fix:"),
+            profile == "rtk",
+            "{profile}: the report's fix-quality map"
+        );
         let events = json(&folder.join("events.json"));
         let rejected: Vec<&serde_json::Value> = events
             .as_array()

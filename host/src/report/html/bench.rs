@@ -321,6 +321,17 @@ pub(super) fn run_html(run: &LoadedRun) -> anyhow::Result<String> {
             ),
         )?);
     }
+    if let Some(detail) = &run.detail
+        && let Some(epochs) = &detail.gnss
+        && let Some(svg) =
+            super::super::figures::gnss_svg(&detail.groundtruth_xy, epochs, f64::from(RUN_WIDTH_PX))
+    {
+        let _ = writeln!(
+            h,
+            "<figure>{svg}<figcaption>The GNSS fixes fed to the system along the true route, \
+             coloured by fix status (issue 47's fix-quality map).</figcaption></figure>"
+        );
+    }
     if let Some(t) = &run.timing {
         h.push_str("<table><tr><th class=\"l\">timing</th><th>value</th></tr>\n");
         let rows = [
