@@ -144,9 +144,10 @@ pub struct LioSam {
 #[derive(Debug)]
 struct Localizing {
     localizer: MapLocalizer,
-    /// The map's georeference `map_from_enu` and the antenna's horizontal distance from
-    /// the lidar, m, when the map was made with GNSS and a receiver feeds this run.
-    gnss_prior: Option<(Isometry3<f64>, f64)>,
+    /// The antenna's horizontal distance from the lidar, m, when the map is georeferenced
+    /// (made with GNSS) and a receiver feeds this run: each fix then a prior for the
+    /// global search (`MapLocalizer::gnss_fix`).
+    antenna_offset_m: Option<f64>,
     guess: Option<Isometry3<f64>>,
     points: Vec<[f32; 3]>,
     status: PoseStatus,
@@ -661,13 +662,15 @@ impl SlamSystem for LioSam {
         // The saved map is the reference: no GPS factors move it. A map made with GNSS
         // keeps its georeference; with a receiver now, each fix is a prior for the global
         // search (the antenna's horizontal offset from the lidar counted in its spread).
-        let gnss_prior = match (map.map_from_enu, system.gnss.take()) {
-            (Some(map_from_enu), Some(_)) => rig.first(SensorKind::Gnss).map(|receiver| {
-                let lever = (system.lidar_from_base * receiver.base_from_sensor())
+        let receiver = system.gnss.take().and(rig.first(SensorKind::Gnss));
+        let antenna_offset_m = match (map.map_from_enu, receiver) {
+            (Some(_), Some(receiver)) => Some(
+                (system.lidar_from_base * receiver.base_from_sensor())
                     .translation
-                    .vector;
-                (map_from_enu, lever.xy().norm())
-            }),
+                    .vector
+                    .xy()
+                    .norm(),
+            ),
             _ => None,
         };
         let guess = start
@@ -676,7 +679,7 @@ impl SlamSystem for LioSam {
             .map(|map_from_base| map_from_base * system.lidar_from_base.inverse());
         system.localizer = Some(Localizing {
             localizer: MapLocalizer::new(map, system.cfg.localization.clone()),
-            gnss_prior,
+            antenna_offset_m,
             guess,
             points: Vec::new(),
             status: PoseStatus::Searching,
@@ -793,16 +796,11 @@ impl SlamSystem for LioSam {
     /// used with a `gnss_rejected` event (never an error). Ignored without `[gps]`.
     fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
         if let Some(l) = &mut self.localizer {
-            if let Some((map_from_enu, offset_m)) = l.gnss_prior
+            if let Some(offset_m) = l.antenna_offset_m
                 && let Some(fix) = usable(gnss, &mut self.events)
             {
-                let c = fix.covariance_enu_m2;
-                let sigma = (c[(0, 0)].max(c[(1, 1)])
-                    + self.cfg.localization.gnss_georeference_sigma_m.powi(2)
-                    + offset_m * offset_m)
-                    .sqrt();
-                let at = map_from_enu * nalgebra::Point3::from(fix.position_enu_m);
-                l.localizer.gnss_prior(&at.coords, sigma);
+                l.localizer
+                    .gnss_fix(&fix.position_enu_m, &fix.covariance_enu_m2, offset_m);
             }
             return Ok(None);
         }

@@ -48,10 +48,10 @@ pub struct StaticMapping {
 struct Localizing {
     front_end: frontend::FrontEnd,
     localizer: MapLocalizer,
-    /// The map's georeference `map_from_enu` and the antenna's horizontal distance from
-    /// the lidar, m, when the map was made with GNSS and a receiver feeds this run: each
-    /// fix a prior for the global search.
-    gnss_prior: Option<(Isometry3<f64>, f64)>,
+    /// The antenna's horizontal distance from the lidar, m, when the map is georeferenced
+    /// (made with GNSS) and a receiver feeds this run: each fix then a prior for the
+    /// global search (`MapLocalizer::gnss_fix`).
+    antenna_offset_m: Option<f64>,
     /// Fixes refused (`gnss_rejected`).
     events: Vec<Event>,
     guess: Option<Isometry3<f64>>,
@@ -360,13 +360,15 @@ impl SlamSystem for StaticMapping {
         // The saved map is the reference: no GNSS prior moves it; a map made with GNSS
         // keeps its georeference, and with a receiver now each fix is a prior for the
         // global search, as lio-sam's.
-        let gnss_prior = match (map.map_from_enu, system.gnss.take()) {
-            (Some(map_from_enu), Some(_)) => rig.first(SensorKind::Gnss).map(|receiver| {
-                let lever = (system.lidar_from_base * receiver.base_from_sensor())
+        let receiver = system.gnss.take().and(rig.first(SensorKind::Gnss));
+        let antenna_offset_m = match (map.map_from_enu, receiver) {
+            (Some(_), Some(receiver)) => Some(
+                (system.lidar_from_base * receiver.base_from_sensor())
                     .translation
-                    .vector;
-                (map_from_enu, lever.xy().norm())
-            }),
+                    .vector
+                    .xy()
+                    .norm(),
+            ),
             _ => None,
         };
         let cfg = &system.cfg;
@@ -384,7 +386,7 @@ impl SlamSystem for StaticMapping {
             )
             .without_history(),
             localizer: MapLocalizer::new(map, cfg.localization.clone()),
-            gnss_prior,
+            antenna_offset_m,
             events: Vec::new(),
             guess,
             status: PoseStatus::Searching,
@@ -453,16 +455,9 @@ impl SlamSystem for StaticMapping {
     /// a `gnss_rejected` event (never an error). Ignored without `[gps] use_gps`.
     fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
         if let Some(l) = &mut self.localizing {
-            if let Some((map_from_enu, offset_m)) = l.gnss_prior {
+            if let Some(offset_m) = l.antenna_offset_m {
                 match (gnss.problem(), gnss.position(), gnss.covariance()) {
-                    (None, Some(p), Some(c)) => {
-                        let sigma = (c[(0, 0)].max(c[(1, 1)])
-                            + self.cfg.localization.gnss_georeference_sigma_m.powi(2)
-                            + offset_m * offset_m)
-                            .sqrt();
-                        let at = map_from_enu * Point3::from(p);
-                        l.localizer.gnss_prior(&at.coords, sigma);
-                    }
+                    (None, Some(p), Some(c)) => l.localizer.gnss_fix(&p, &c, offset_m),
                     (problem, ..) => l.events.push(gnss.rejected(
                         "staticmapping (a localisation prior)",
                         problem.unwrap_or("not usable"),

@@ -24,7 +24,7 @@
 //!   drops loop candidates farther from the GPS position than a radius). No keyframe within
 //!   it and the search finds nothing.
 
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, UnitQuaternion, Vector3};
 
 use super::keyframes::KeyframeMap;
 use crate::place::scan_context::{ScanContext, ScanContextConfig, ScanContextDatabase};
@@ -126,6 +126,27 @@ impl MapLocalizer {
     /// keeps the keyframes within three of them.
     pub fn gnss_prior(&mut self, sensor_in_map: &Vector3<f64>, sigma_m: f64) {
         self.gnss_prior = Some((*sensor_in_map, 3.0 * sigma_m));
+    }
+
+    /// A GNSS fix as a prior for the global search, where the map is georeferenced (made
+    /// with GNSS; else nothing): the antenna's position and covariance in east-north-up,
+    /// carried into the map; its spread combines the fix's larger horizontal variance, the
+    /// georeference's (`gnss_georeference_sigma_m`) and the antenna's horizontal offset from
+    /// the sensor, m (whose direction is not known before the heading is).
+    pub fn gnss_fix(
+        &mut self,
+        antenna_enu: &Vector3<f64>,
+        covariance_enu: &Matrix3<f64>,
+        antenna_offset_m: f64,
+    ) {
+        let Some(map_from_enu) = self.map.map_from_enu else {
+            return;
+        };
+        let sigma = (covariance_enu[(0, 0)].max(covariance_enu[(1, 1)])
+            + self.cfg.gnss_georeference_sigma_m.powi(2)
+            + antenna_offset_m.powi(2))
+        .sqrt();
+        self.gnss_prior(&(map_from_enu * Point3::from(*antenna_enu)).coords, sigma);
     }
 
     pub fn keyframes(&self) -> usize {
@@ -350,5 +371,31 @@ mod tests {
             searches >= 1 && found == 0,
             "{searches} searches, {found} found"
         );
+
+        // Through a georeferenced map: fixes in east-north-up, 100 m east of the map's
+        // frame, carried in by the map's `map_from_enu`; without a georeference, no prior.
+        let mut map = corridor_map();
+        map.map_from_enu = Some(Isometry3::translation(-100.0, 0.0, 0.0));
+        let mut localizer = MapLocalizer::new(map, LocalizerConfig::default());
+        let tight = Matrix3::from_diagonal_element(1e-4);
+        localizer.gnss_fix(&Vector3::new(300.0, 0.0, 0.0), &tight, 0.1);
+        let l = localizer.update(&Isometry3::identity(), &scan(50.3));
+        assert!(
+            !l.localized,
+            "a fix 150 m past the corridor's end, yet localised: {l:?}"
+        );
+        localizer.gnss_fix(&Vector3::new(150.3, 0.0, 0.0), &tight, 0.1);
+        let mut l = l;
+        for _ in 0..=LocalizerConfig::default().lost_after {
+            l = localizer.update(&Isometry3::identity(), &scan(50.3));
+        }
+        assert!(l.localized, "{l:?}");
+        assert!(
+            (l.map_from_sensor.translation.x - 50.3).abs() < 0.05,
+            "{l:?}"
+        );
+        let mut plain = MapLocalizer::new(corridor_map(), LocalizerConfig::default());
+        plain.gnss_fix(&Vector3::new(300.0, 0.0, 0.0), &tight, 0.1);
+        assert!(plain.gnss_prior.is_none());
     }
 }
