@@ -237,6 +237,15 @@ impl Gnss {
         }
     }
 
+    /// The fix's antenna position and covariance (east-north-up, m and m²), or why it
+    /// cannot be used ([`Gnss::problem`]).
+    pub fn usable(&self) -> Result<(nalgebra::Vector3<f64>, nalgebra::Matrix3<f64>), &'static str> {
+        match (self.problem(), self.position(), self.covariance()) {
+            (None, Some(p), Some(c)) => Ok((p, c)),
+            (problem, ..) => Err(problem.unwrap_or("not usable")),
+        }
+    }
+
     /// The `gnss_rejected` event a plugin named `plugin` reports for this fix, saying why
     /// (`problem`: [`Gnss::problem`]'s, or the plugin's own reason).
     pub fn rejected(&self, plugin: &str, problem: &str) -> crate::system::Event {

@@ -86,14 +86,14 @@ pub struct KeyframeState {
 /// A fix as the plugin uses it, or `None` with a `gnss_rejected` event saying why not (no
 /// fix, a position that is not finite, a covariance that is not positive definite).
 pub fn usable(gnss: &GnssMessage, events: &mut Vec<Event>) -> Option<Fix> {
-    match (gnss.problem(), gnss.position(), gnss.covariance()) {
-        (None, Some(position_enu_m), Some(covariance_enu_m2)) => Some(Fix {
+    match gnss.usable() {
+        Ok((position_enu_m, covariance_enu_m2)) => Some(Fix {
             stamp_ns: gnss.stamp_ns,
             position_enu_m,
             covariance_enu_m2,
         }),
-        (problem, ..) => {
-            events.push(gnss.rejected("lio-sam", problem.unwrap_or("not usable")));
+        Err(problem) => {
+            events.push(gnss.rejected("lio-sam", problem));
             None
         }
     }

@@ -96,12 +96,7 @@ pub struct Gps {
 impl Gps {
     /// The fix as RTAB-Map keeps it, or why it cannot be used.
     pub fn from_message(msg: &GnssMessage) -> Result<Self, &'static str> {
-        if let Some(problem) = msg.problem() {
-            return Err(problem);
-        }
-        let (Some(p), Some(c)) = (msg.position(), msg.covariance()) else {
-            return Err("not usable");
-        };
+        let (p, c) = msg.usable()?;
         if !msg.altitude_m.is_finite() {
             return Err("a fix without a finite altitude");
         }

@@ -264,14 +264,14 @@ impl Epochs {
     /// Keeps the epoch; a fix that cannot be used becomes a gap and a `gnss_rejected`
     /// event.
     pub fn push(&mut self, gnss: &GnssMessage, events: &mut Vec<Event>) {
-        let fix = match (gnss.problem(), gnss.position(), gnss.covariance()) {
-            (None, Some(position_enu_m), Some(covariance_enu_m2)) => Some(Fix {
+        let fix = match gnss.usable() {
+            Ok((position_enu_m, covariance_enu_m2)) => Some(Fix {
                 stamp_ns: gnss.stamp_ns,
                 position_enu_m,
                 covariance_enu_m2,
             }),
-            (problem, ..) => {
-                events.push(gnss.rejected("staticmapping", problem.unwrap_or("not usable")));
+            Err(problem) => {
+                events.push(gnss.rejected("staticmapping", problem));
                 None
             }
         };

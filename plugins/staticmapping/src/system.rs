@@ -456,12 +456,11 @@ impl SlamSystem for StaticMapping {
     fn on_gnss(&mut self, gnss: &GnssMessage) -> Result<Option<Pose>, PluginError> {
         if let Some(l) = &mut self.localizing {
             if let Some(offset_m) = l.antenna_offset_m {
-                match (gnss.problem(), gnss.position(), gnss.covariance()) {
-                    (None, Some(p), Some(c)) => l.localizer.gnss_fix(&p, &c, offset_m),
-                    (problem, ..) => l.events.push(gnss.rejected(
-                        "staticmapping (a localisation prior)",
-                        problem.unwrap_or("not usable"),
-                    )),
+                match gnss.usable() {
+                    Ok((p, c)) => l.localizer.gnss_fix(&p, &c, offset_m),
+                    Err(problem) => l
+                        .events
+                        .push(gnss.rejected("staticmapping (a localisation prior)", problem)),
                 }
             }
             return Ok(None);
