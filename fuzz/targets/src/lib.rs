@@ -411,6 +411,7 @@ pub fn report_maps(data: &[u8]) {
         loops: Vec::new(),
         joins: None,
         frames: None,
+        gnss: None,
     };
     let results = BenchResults {
         dir: dir.path().to_path_buf(),
