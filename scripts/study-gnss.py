@@ -59,7 +59,8 @@ def tables(runs):
         gnss = m.get("gnss") or {}
         per.setdefault(c["scenario"], []).append({
             "ate": m["ape"]["rmse"],
-            "horizontal": gnss.get("horizontal_rmse_m"),
+            # Every run's since `horizontal_rmse_m`; before, only GNSS-fed runs had it.
+            "horizontal": m.get("horizontal_rmse_m", gnss.get("horizontal_rmse_m")),
             "outage": gnss.get("worst_error_in_outage_m"),
             "wrong": (m.get("joins") or {}).get("wrong_joins", 0),
         })

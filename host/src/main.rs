@@ -34,6 +34,8 @@ enum Command {
     Sweep(vinebench::cmd::sweep::SweepArgs),
     /// Rebuild report.html of a bench's or a sweep's results folder.
     Report(vinebench::cmd::report::ReportArgs),
+    /// Score finished runs again with this build's evaluation, from what each run kept.
+    Rescore(vinebench::cmd::rescore::RescoreArgs),
     /// List the plugins on the search path, and the libraries there that fail to load.
     Plugins(vinebench::cmd::plugins::PluginsArgs),
     /// Check that a plugin keeps the plugin contract: loads, runs a short route, and answers
@@ -62,6 +64,7 @@ fn main() -> std::process::ExitCode {
         Command::Sweep(args) => vinebench::cmd::sweep::run(&args),
         Command::SweepTask(args) => vinebench::cmd::sweep::run_task(&args),
         Command::Report(args) => vinebench::cmd::report::run(&args),
+        Command::Rescore(args) => vinebench::cmd::rescore::run(&args),
         Command::Plugins(args) => vinebench::cmd::plugins::run(&args),
         Command::CheckPlugin(args) => vinebench::cmd::check_plugin::run(&args),
         Command::Worker(args) => vinebench::cmd::worker::run(&args),

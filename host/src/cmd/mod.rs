@@ -39,6 +39,7 @@ pub mod plugins;
 pub mod progress;
 pub mod record;
 pub mod report;
+pub mod rescore;
 pub mod run;
 pub mod sim_args;
 pub mod simulate;

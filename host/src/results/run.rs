@@ -60,6 +60,11 @@ pub struct Metrics {
     pub ape: Statistics,
     /// APE translation of the poses returned during the run, if any.
     pub online_ape: Option<Statistics>,
+    /// The RMSE of the final trajectory's east and north errors alone (aligned as `ape`),
+    /// m: what a robot's navigation in the rows needs, apart from the height a 2D system
+    /// leaves at 0. Absent in runs scored before it was stored (`vinebench rescore`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizontal_rmse_m: Option<f64>,
     /// Loop closures accepted (of those, how many were false and, if any, how many could
     /// not be judged) and rejected.
     pub loops: LoopCounts,
@@ -104,9 +109,6 @@ pub struct GnssMetrics {
     /// absent when no pose falls in it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub worst_error_in_outage_m: Option<f64>,
-    /// The RMSE of the east and north errors alone (aligned as `ape`), m.
-    #[serde(default)]
-    pub horizontal_rmse_m: f64,
 }
 
 /// A similarity transform as `metrics.json` holds it: `p' = s R p + t`.
@@ -403,7 +405,12 @@ impl ApeSeries {
 /// Writes `value` as pretty JSON with a final newline.
 pub fn write_json(path: &Path, value: &impl Serialize) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(value)?;
-    std::fs::write(path, text + "\n").with_context(|| path.display().to_string())
+    // Beside it, then renamed over it: an interrupted write leaves the old file whole.
+    let mut partial = path.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = PathBuf::from(partial);
+    std::fs::write(&partial, text + "\n").with_context(|| partial.display().to_string())?;
+    std::fs::rename(&partial, path).with_context(|| path.display().to_string())
 }
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> anyhow::Result<T> {

@@ -74,6 +74,7 @@ pub fn evaluate(run: &RunFolder, alignment: Alignment) -> anyhow::Result<()> {
         alignment: alignment.name().to_owned(),
         ape: final_.stats,
         online_ape: online.map(|(_, stats)| stats),
+        horizontal_rmse_m: Some(horizontal_rmse(&final_.pairs)),
         loops,
         alignment_transform: Some(Transform::from(&final_.transform)),
         sim3_scale,
@@ -158,12 +159,11 @@ fn gnss(
         longest_outage_start_s: from,
         longest_outage_s: to - from,
         worst_error_in_outage_m: worst,
-        horizontal_rmse_m: horizontal_rmse(pairs),
     }))
 }
 
-/// The RMSE of the aligned positions' east and north errors alone, m: what a GNSS-aided
-/// robot's navigation needs, apart from the height a 2D filter leaves at 0.
+/// The RMSE of the aligned positions' east and north errors alone, m
+/// ([`Metrics::horizontal_rmse_m`]).
 fn horizontal_rmse(pairs: &eval::PosePairs) -> f64 {
     let squares: f64 = pairs
         .reference

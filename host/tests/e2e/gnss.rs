@@ -56,7 +56,7 @@ fn horizontal_rms_after(folder: &Path, from_s: f64) -> f64 {
 #[test]
 fn the_ekf_with_rtk_holds_where_dead_reckoning_drifts() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let (mut ates, mut late) = (Vec::new(), Vec::new());
+    let (mut ates, mut late, mut folders) = (Vec::new(), Vec::new(), Vec::new());
     for profile in ["rtk", "none"] {
         let w = world(tmp.path(), profile);
         let folder = run_with(
@@ -69,6 +69,16 @@ fn the_ekf_with_rtk_holds_where_dead_reckoning_drifts() {
         );
         ates.push(ate(&folder, "estimate.tum"));
         late.push(horizontal_rms_after(&folder, 15.0));
+        // Every run's metrics.json holds its horizontal RMSE, fed GNSS or not.
+        let horizontal = json(&folder.join("metrics.json"))["horizontal_rmse_m"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{profile}: no horizontal_rmse_m"));
+        let from_ape = horizontal_rms_after(&folder, 0.0);
+        assert!(
+            (horizontal - from_ape).abs() < 1e-3,
+            "{profile}: horizontal RMSE {horizontal} m in metrics.json, {from_ape} m from ape.csv"
+        );
+        folders.push(folder.clone());
         // The report's fix-quality map is there only with a receiver.
         let report = std::fs::read_to_string(tmp.path().join(format!("ekf-{profile}/report.html")))
             .expect("report.html");
@@ -110,6 +120,48 @@ fn the_ekf_with_rtk_holds_where_dead_reckoning_drifts() {
         late[1]
     );
     assert!(rtk < none, "ekf with RTK {rtk:.3} m vs without {none:.3} m");
+    rescored_runs_keep_their_scores(&folders[0], tmp.path());
+}
+
+/// `vinebench rescore` on a run scored before `horizontal_rmse_m` existed (its key taken
+/// out of metrics.json): the key comes back with its value, nothing else of metrics.json or
+/// events.json changes; a folder that is not a scored run is named and exits 3.
+fn rescored_runs_keep_their_scores(folder: &Path, tmp: &Path) {
+    let metrics_path = folder.join("metrics.json");
+    let scored = json(&metrics_path);
+    let events = std::fs::read(folder.join("events.json")).expect("events.json");
+    let mut old = scored.clone();
+    old.as_object_mut()
+        .expect("an object")
+        .remove("horizontal_rmse_m");
+    std::fs::write(&metrics_path, old.to_string()).expect("write metrics.json");
+    vinebench_ok(
+        &[OsString::from("rescore"), folder.as_os_str().to_owned()],
+        "rescore",
+    );
+    assert_eq!(json(&metrics_path), scored, "metrics.json rescored");
+    assert_eq!(
+        std::fs::read(folder.join("events.json")).expect("events.json"),
+        events,
+        "events.json rescored"
+    );
+    let not_a_run = tmp.join("not-a-run");
+    std::fs::create_dir_all(&not_a_run).expect("mkdir");
+    let o = crate::common::vinebench(&[
+        OsString::from("rescore"),
+        folder.as_os_str().to_owned(),
+        not_a_run.as_os_str().to_owned(),
+    ]);
+    let stderr = text(&o.stderr);
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "rescore with a bad folder: {stderr}"
+    );
+    assert!(
+        stderr.contains("not-a-run") && stderr.contains("not a scored run"),
+        "{stderr}"
+    );
 }
 
 /// `check-plugin` feeds the `ekf` a fix without a position, one with a zero covariance, one
