@@ -42,6 +42,22 @@ pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
 }
 
+/// Whether a stop is asked for within `within`: for a worker that died of SIGINT, SIGTERM
+/// or SIGHUP, which a terminal's or `pkill`'s signal may deliver to it a moment before the
+/// supervisor's handler has run.
+pub fn interrupted_within(within: std::time::Duration) -> bool {
+    let started = std::time::Instant::now();
+    loop {
+        if interrupted() {
+            return true;
+        }
+        if started.elapsed() >= within {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
 /// Whether a run's failure reason is an interruption rather than the plugin's doing.
 pub fn is_interruption(reason: &str) -> bool {
     reason == REASON

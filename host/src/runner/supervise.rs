@@ -12,6 +12,9 @@ use crate::results::files;
 
 /// How often the child is checked on.
 const POLL: Duration = Duration::from_millis(20);
+/// How long a worker's death by a stop signal waits for the supervisor's own stop
+/// (`interrupt::interrupted_within`) before it counts as the plugin's failure.
+const INTERRUPT_GRACE: Duration = Duration::from_millis(500);
 
 /// Runs the worker on the job file in `run_dir` (absolute), in that folder; `progress(fraction)` is called as it
 /// advances. `Err` is the failure reason.
@@ -115,6 +118,13 @@ pub fn watch(
         };
         if status.success() {
             return Ok(());
+        }
+        // A stop signal that reached the worker with the supervisor (`pkill vinebench`, a
+        // terminal's group) is the user's stop, not the plugin's failure: not filed.
+        if matches!(status.signal(), Some(1 | 2 | 15))
+            && super::interrupt::interrupted_within(INTERRUPT_GRACE)
+        {
+            return Err(super::interrupt::REASON.to_owned());
         }
         let log = std::fs::read_to_string(&log_path).unwrap_or_default();
         Err(reason(status, &log, memory_limit_mb))

@@ -336,8 +336,29 @@ fn a_closed_output_loses_nothing() {
     assert_eq!(table["s2"]["odom"]["status"], "ok", "{table}");
 }
 
+/// The processes whose parent is `pid` (from /proc: procps is not on every machine).
+fn children_of(pid: u32) -> Vec<u32> {
+    let mut children = Vec::new();
+    for entry in std::fs::read_dir("/proc").expect("/proc").flatten() {
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        // `pid (comm) state ppid ...`; comm may hold spaces and parentheses.
+        let Some((_, rest)) = stat.rsplit_once(") ") else {
+            continue;
+        };
+        let parent = rest.split_whitespace().nth(1).and_then(|p| p.parse().ok());
+        if parent == Some(pid)
+            && let Ok(child) = entry.file_name().to_string_lossy().parse()
+        {
+            children.push(child);
+        }
+    }
+    children
+}
+
 /// Ctrl-C during a bench: the run that finished is kept in the partial folder, the hung one
-/// is stopped and not filed, the exit code is 130 and the message says where; no results
+/// is stopped and not filed (its worker stopped by SIGTERM a moment before), the exit code is 130 and the message says where; no results
 /// folder appears. The same command then resumes: the finished run is not run again (its
 /// files are the very bytes it left), the other one runs.
 #[test]
@@ -372,11 +393,22 @@ fn ctrl_c_keeps_what_finished_and_the_same_command_resumes() {
         assert!(started.elapsed() < Duration::from_secs(60));
         std::thread::sleep(Duration::from_millis(50));
     }
-    let signalled = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(signalled.success());
+    // The hung worker is stopped first (as `pkill vinebench` stops every process, workers
+    // included, a moment apart), then the bench: the worker's death by SIGTERM is the
+    // user's stop, not the plugin's failure, and is not filed either.
+    let workers = children_of(child.id());
+    assert_eq!(workers.len(), 1, "one running worker: {workers:?}");
+    for (signal, pid) in [("-TERM", workers[0]), ("-INT", child.id())] {
+        let pid = pid.to_string();
+        let signalled = Command::new("kill")
+            .args([signal, &pid])
+            .status()
+            .expect("kill runs");
+        assert!(signalled.success());
+        // Long enough for the supervisor to see its worker dead before its own stop,
+        // well within the grace it gives a worker stopped by a signal.
+        std::thread::sleep(Duration::from_millis(100));
+    }
     let mut stderr = String::new();
     child
         .stderr
