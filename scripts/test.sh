@@ -6,6 +6,8 @@ cd "$(dirname "$0")/.."
 source scripts/setup.sh
 
 cargo fmt --all -- --check
+# The study scripts' resume logic (what a study spread over sessions runs next).
+python3 -m unittest discover -s scripts -p 'test_*.py'
 # Everything below builds in the `suite` profile (Cargo.toml): release optimisation, so the
 # simulator-driven tests run at full speed, without the cross-crate LTO and debug info that
 # make each of the suite's test binaries and plugins slow to link.
