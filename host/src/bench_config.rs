@@ -19,6 +19,16 @@ pub enum Align {
     FourDof,
 }
 
+impl Align {
+    /// The alignment a command line or `metrics.json` names (`none`, `origin`, `se3`,
+    /// `sim3`, `4dof`: the bench file's spelling).
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        toml::Value::String(name.to_owned())
+            .try_into()
+            .map_err(|_| format!("{name}: expected none, origin, se3, sim3 or 4dof"))
+    }
+}
+
 impl From<Align> for eval::Alignment {
     fn from(a: Align) -> Self {
         match a {

@@ -81,6 +81,7 @@ const STATUSES: [(FixStatus, &str); 4] = [
     (FixStatus::Single, FIX_COLOURS[2].1),
     (FixStatus::None, FIX_COLOURS[3].1),
 ];
+
 pub fn run(args: &GnssMapArgs) -> anyhow::Result<()> {
     let base = SimConfig::load_as(args.world.as_deref(), args.profile)?;
     let world_name = args

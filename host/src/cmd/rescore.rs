@@ -50,10 +50,7 @@ pub fn run(args: &RescoreArgs) -> anyhow::Result<()> {
 }
 
 fn parse_align(name: &str) -> anyhow::Result<eval::Alignment> {
-    let align: Align = toml::Value::String(name.to_owned())
-        .try_into()
-        .map_err(|_| anyhow::anyhow!("{name:?}: expected none, origin, se3, sim3 or 4dof"))?;
-    Ok(align.into())
+    Ok(Align::from_name(name).map_err(anyhow::Error::msg)?.into())
 }
 
 /// Scores one run again; says what changed in its APE RMSE.

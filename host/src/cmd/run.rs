@@ -92,14 +92,7 @@ pub fn run_with(
     if let Some(d) = &args.drops {
         crate::runner::read_drops(d)?;
     }
-    let align: Align = toml::Value::String(args.align.clone())
-        .try_into()
-        .map_err(|_| {
-            anyhow::anyhow!(
-                "--align {}: expected none, origin, se3, sim3 or 4dof",
-                args.align
-            )
-        })?;
+    let align = Align::from_name(&args.align).map_err(|e| anyhow::anyhow!("--align {e}"))?;
     anyhow::ensure!(
         args.timeout_s.is_finite() && args.timeout_s > 0.0,
         "--timeout-s {}: must be positive",

@@ -663,16 +663,12 @@ impl SlamSystem for LioSam {
         // keeps its georeference; with a receiver now, each fix is a prior for the global
         // search (the antenna's horizontal offset from the lidar counted in its spread).
         let receiver = system.gnss.take().and(rig.first(SensorKind::Gnss));
-        let antenna_offset_m = match (map.map_from_enu, receiver) {
-            (Some(_), Some(receiver)) => Some(
-                (system.lidar_from_base * receiver.base_from_sensor())
-                    .translation
-                    .vector
-                    .xy()
-                    .norm(),
-            ),
-            _ => None,
-        };
+        let antenna_offset_m = map.map_from_enu.and(receiver).map(|receiver| {
+            slam_common::gnss::horizontal_lever_m(
+                &system.lidar_from_base,
+                &receiver.base_from_sensor(),
+            )
+        });
         let guess = start
             .initial_guess
             .and_then(|g| g.map_from_base.isometry())

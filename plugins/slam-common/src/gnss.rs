@@ -34,6 +34,20 @@ pub struct Fix {
     pub covariance_enu_m2: Matrix3<f64>,
 }
 
+/// The antenna's horizontal distance from a sensor, m (`sensor_from_base` the sensor's
+/// mount inverted, `base_from_antenna` the receiver's): the spread a fix's position gets
+/// as a prior for the sensor's before the heading says which way the lever points.
+pub fn horizontal_lever_m(
+    sensor_from_base: &Isometry3<f64>,
+    base_from_antenna: &Isometry3<f64>,
+) -> f64 {
+    (sensor_from_base * base_from_antenna)
+        .translation
+        .vector
+        .xy()
+        .norm()
+}
+
 /// navsat_transform's alignment: `frame_from_enu`, a rotation about the vertical and a
 /// translation, from one instant at which the body's position `body_in_frame` and heading
 /// `frame_yaw` in the system's frame are estimated and the body's attitude `enu_r_body` in
