@@ -163,7 +163,8 @@ def main():
                          "folder) lacks, print their paths in the order to run them, stop")
     args = ap.parse_args()
     if args.resume:
-        for f in sorted(resume_files(args.resume, args.kept, Path(args.resume).parent),
+        for f in sorted(resume_files(args.resume, args.kept, Path(args.resume).parent,
+                                     group_variants=True),
                         key=order):
             print(f)
         return

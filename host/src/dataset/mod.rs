@@ -49,7 +49,7 @@ mod wire;
 
 pub use error::DatasetError;
 pub use recorder::Recorder;
-pub use replay::{Replay, replay_messages};
+pub use replay::{Replay, replay_messages, replay_with_live};
 pub use results::{JudgedLoop, RunResults, write_results};
 pub use topics::Topic;
 pub use wire::{Assembler, RosMessage, ScanTiming, to_ros};

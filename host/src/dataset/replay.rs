@@ -101,7 +101,7 @@ impl<R: Read> Replay<R> {
         Ok(())
     }
 
-    fn next_message(&mut self) -> Result<Option<Message>, DatasetError> {
+    fn next_message(&mut self) -> Result<Option<(i64, Message)>, DatasetError> {
         while !self.done {
             // The records of the chunk being read, then the file's next record.
             if self.chunk_at < self.chunk.len() {
@@ -173,7 +173,7 @@ impl<R: Read> Replay<R> {
 
     /// The next record of the chunk being read: its records must tile it exactly (the mcap
     /// crate's own chunk reading underflows on a record that runs past its chunk).
-    fn chunk_record(&mut self, chunk: &[u8]) -> Result<Option<Message>, DatasetError> {
+    fn chunk_record(&mut self, chunk: &[u8]) -> Result<Option<(i64, Message)>, DatasetError> {
         let at = self.chunk_at;
         let bad = || DatasetError::invalid(&self.path, "chunk: a record runs past its end");
         let head = chunk.get(at..at + 9).ok_or_else(bad)?;
@@ -188,8 +188,9 @@ impl<R: Read> Replay<R> {
         self.record(opcode, &chunk[at + 9..end])
     }
 
-    /// Takes one record (in a chunk or not); returns the message it completes.
-    fn record(&mut self, opcode: u8, data: &[u8]) -> Result<Option<Message>, DatasetError> {
+    /// Takes one record (in a chunk or not); returns the message it completes, with when it
+    /// became available (its `log_time` on the simulator's clock).
+    fn record(&mut self, opcode: u8, data: &[u8]) -> Result<Option<(i64, Message)>, DatasetError> {
         let record = match opcode {
             op::SCHEMA | op::CHANNEL | op::MESSAGE | op::DATA_END => {
                 if !strings_fit(opcode, data) {
@@ -232,12 +233,13 @@ impl<R: Read> Replay<R> {
                             ),
                         )
                     })?;
-                return self.assembler.push(topic, ready_ns, &data).map_err(|e| {
+                let message = self.assembler.push(topic, ready_ns, &data).map_err(|e| {
                     DatasetError::invalid(
                         &self.path,
                         format!("{} message {}: {e}", topic.name(), header.sequence),
                     )
-                });
+                })?;
+                return Ok(message.map(|m| (ready_ns, m)));
             }
             // The summary after the data section repeats schemas and channels only.
             Record::DataEnd(_) => self.done = true,
@@ -251,6 +253,15 @@ impl<R: Read> Iterator for Replay<R> {
     type Item = Result<Message, DatasetError>;
 
     fn next(&mut self) -> Option<Self::Item> {
+        self.next_timed().map(|m| m.map(|(_, m)| m))
+    }
+}
+
+impl<R: Read> Replay<R> {
+    /// The next message with the time it became available on the simulator's clock (its
+    /// `log_time` less [`EPOCH_NS`]: a sweep's end, anything else its stamp, a GNSS epoch
+    /// after the receiver's latency), the time the live stream orders messages by.
+    pub fn next_timed(&mut self) -> Option<Result<(i64, Message), DatasetError>> {
         if self.done {
             return None;
         }
@@ -310,4 +321,61 @@ pub fn replay_messages(
     }
     let replay = Replay::open(path, sensors)?;
     Ok(replay.map(|m| m.unwrap_or_else(|e| panic!("{e} (the file changed during the replay)"))))
+}
+
+/// [`replay_messages`] with `live`'s messages merged in where a live stream of both would
+/// put them: by the time each becomes available, a recorded message first at a tie (the
+/// simulator lists the GNSS receiver after every other sensor). `live` is the run's own
+/// GNSS receiver (`runner::record`: a recording made once for every receiver of a sweep
+/// leaves GNSS out), whose epochs become available after its latency; any other message
+/// it yields counts as available at its stamp.
+pub fn replay_with_live<'a>(
+    path: &Path,
+    sensors: SensorSet,
+    live: impl Iterator<Item = Message> + Send + 'a,
+) -> anyhow::Result<impl Iterator<Item = Message> + Send + 'a> {
+    for message in Replay::open(path, sensors)? {
+        message?;
+    }
+    let mut replay = Replay::open(path, sensors)?;
+    let recorded = std::iter::from_fn(move || {
+        replay
+            .next_timed()
+            .map(|m| m.unwrap_or_else(|e| panic!("{e} (the file changed during the replay)")))
+    });
+    Ok(Merge {
+        recorded: recorded.peekable(),
+        live: live.peekable(),
+    })
+}
+
+/// When a live message becomes available on the simulator's clock.
+fn live_ready_ns(message: &Message) -> i64 {
+    match message {
+        Message::Gnss(fix) => fix.stamp_ns + fix.latency_ns,
+        m => m.stamp_ns(),
+    }
+}
+
+/// Two streams in order of availability, the recorded one first at a tie.
+struct Merge<A: Iterator, B: Iterator> {
+    recorded: std::iter::Peekable<A>,
+    live: std::iter::Peekable<B>,
+}
+
+impl<A, B> Iterator for Merge<A, B>
+where
+    A: Iterator<Item = (i64, Message)>,
+    B: Iterator<Item = Message>,
+{
+    type Item = Message;
+
+    fn next(&mut self) -> Option<Message> {
+        let live = self.live.peek().map(live_ready_ns);
+        match (self.recorded.peek(), live) {
+            (Some(&(recorded, _)), Some(live)) if live < recorded => self.live.next(),
+            (Some(_), _) => self.recorded.next().map(|(_, m)| m),
+            (None, _) => self.live.next(),
+        }
+    }
 }

@@ -27,6 +27,7 @@ pub use evaluate::evaluate;
 pub use job::{Job, Pace, QueueSize, check_max_time, route_end_ns};
 pub use localize::{GuessSpec, Kidnap, LocalizeSpec, MapSource};
 pub use queue::read_drops;
+pub use record::recorded_world_text;
 
 use crate::results::{RunFolder, RunOutcome, RunStatus, files};
 
@@ -199,7 +200,22 @@ fn run_all(
         Some(dir) if plan.dataset.is_none() => {
             let dir = std::path::absolute(dir)?;
             std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
-            let world_text = config.to_toml_string();
+            let world_text = recorded_world_text(config);
+            // A run with a world of its own replays the plan's recordings only if they are
+            // what its own world would record.
+            for run in &plan.runs {
+                if let Some(own) = &run.world {
+                    let own_config = sim::SimConfig::load(Some(own))?;
+                    anyhow::ensure!(
+                        recorded_world_text(&own_config) == world_text,
+                        "{}/{}: its world {} differs from the plan's in more than its GNSS \
+                         receiver, so it cannot replay the plan's recordings",
+                        run.scenario,
+                        run.label,
+                        own.display()
+                    );
+                }
+            }
             let build = crate::results::exe_hash()?;
             group_recorded(plan, &lengths, &|scenario, sensors| {
                 record::recording_path(
@@ -207,7 +223,7 @@ fn run_all(
                     &world_text,
                     scenario,
                     plan.seed,
-                    plan.max_time_s,
+                    record::recorded_max_time(plan.max_time_s),
                     sensors,
                     &build,
                 )
@@ -233,10 +249,17 @@ fn run_all(
     for g in groups.iter().filter(|g| g.shared) {
         g.runs.iter().for_each(|&i| fed[i] = true);
     }
-    let mut dirs = Vec::with_capacity(plan.runs.len());
+    let mut dirs: Vec<PathBuf> = Vec::with_capacity(plan.runs.len());
     let mut progress = Vec::with_capacity(plan.runs.len());
     for (i, run) in plan.runs.iter().enumerate() {
-        let dir = std::path::absolute(work.join(&run.scenario).join(&run.label))?;
+        // `work/<scenario>/<label>`; a second run of the same scenario and label (a sweep's
+        // cells whose worlds differ only in what they replay alike) `<label>.2`, and so on.
+        let mut dir = std::path::absolute(work.join(&run.scenario).join(&run.label))?;
+        let mut n = 1;
+        while dirs.contains(&dir) {
+            n += 1;
+            dir = std::path::absolute(work.join(&run.scenario).join(format!("{}.{n}", run.label)))?;
+        }
         std::fs::create_dir_all(&dir)?;
         let job = Job {
             scenario: run.scenario.clone(),
@@ -297,7 +320,7 @@ fn run_all(
                         rec,
                         world_file.as_deref(),
                         plan.seed,
-                        plan.max_time_s,
+                        record::recorded_max_time(plan.max_time_s),
                         ahead,
                     )
                 });
@@ -497,7 +520,7 @@ fn group_recorded(
                 ground_truth: true,
                 ..sim::SensorSet::default()
             },
-            |all, &(_, set)| record::union(all, set),
+            |all, &(_, set)| record::union(all, record::recorded_sensors(set)),
         );
         groups.push(Group {
             runs: runs.iter().map(|&(i, _)| i).collect(),

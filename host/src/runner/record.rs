@@ -17,6 +17,13 @@
 //! that a resumed sweep replays it instead of simulating again. Their names hash everything
 //! that makes their bytes (the world's text, scenario, seed, route limit, sensors and the
 //! `vinebench` build), so a kept one is never replayed to a run it does not belong to.
+//!
+//! A recording leaves the GNSS receiver out: each run that takes GNSS simulates its own
+//! receiver as it replays (cheap beside the camera and the lidar) and merges its epochs in
+//! where the live stream puts them (`dataset::replay_with_live`), so worlds that differ only
+//! in their receiver ([`recorded_world_text`]: a sweep over receivers) replay one recording.
+//! Every sensor draws from a stream of its own, so the rest is the same bytes whatever the
+//! receiver (tested).
 
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
@@ -47,6 +54,33 @@ pub fn union(a: SensorSet, b: SensorSet) -> SensorSet {
         scan2d: a.scan2d || b.scan2d,
         rgbd: a.rgbd || b.rgbd,
         gnss: a.gnss || b.gnss,
+    }
+}
+
+/// How far past a route limit a recording goes, seconds: a run cuts its stream at the first
+/// message stamped past the limit, and for a run that merges its GNSS epochs in, that
+/// message (a sweep's end comes at most 0.1 s after its stamp) must be in the file, or the
+/// merge could pass on an epoch the live stream would have cut.
+const PAST_THE_LIMIT_S: f64 = 1.0;
+
+/// The limit a recording for runs cut at `max_time_s` is made with.
+pub fn recorded_max_time(max_time_s: Option<f64>) -> Option<f64> {
+    max_time_s.map(|t| t + PAST_THE_LIMIT_S)
+}
+
+/// What a recording's bytes depend on in `config`: the world without its GNSS receiver,
+/// which recordings leave out (see the module's doc), as TOML.
+pub fn recorded_world_text(config: &sim::SimConfig) -> String {
+    let mut without = config.clone();
+    without.sensors.gnss = Default::default();
+    without.to_toml_string()
+}
+
+/// The sensors a recording for runs that take `sensors` holds: all but GNSS.
+pub fn recorded_sensors(sensors: SensorSet) -> SensorSet {
+    SensorSet {
+        gnss: false,
+        ..sensors
     }
 }
 

@@ -142,6 +142,20 @@ pub fn work(job: &Job) -> anyhow::Result<()> {
     // A shared simulation's stream is checked as it comes: its error fails the run below.
     let mut feed_error = None;
     let source: Box<dyn Iterator<Item = Message> + Send + '_> = match (&job.dataset, job.fed) {
+        // A recording made once for the runs of every receiver leaves GNSS out
+        // (`runner::record`): this run's own receiver is simulated here, from its own world,
+        // and its epochs merged in where the live stream puts them.
+        (Some(path), _) if job.recorded && sensors.gnss && !config.sensors.gnss.is_absent() => {
+            let recorded = SensorSet {
+                gnss: false,
+                ..sensors
+            };
+            let live = sim.stream(SensorSet {
+                gnss: true,
+                ..SensorSet::default()
+            });
+            Box::new(crate::dataset::replay_with_live(path, recorded, live)?)
+        }
         (Some(path), _) => Box::new(crate::dataset::replay_messages(path, sensors)?),
         (None, true) => {
             let reader = FeedReader::new(std::io::stdin());

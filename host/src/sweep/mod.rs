@@ -680,16 +680,36 @@ impl Sweep {
     }
 
     /// One plan per (world, seed) for the given cells, in order of first appearance, so
-    /// that the runs of a scenario may share its simulation.
+    /// that the runs of a scenario may share its simulation. With `record_once`, one per
+    /// (world as recorded, seed): worlds that differ only in their GNSS receiver, which
+    /// recordings leave out, replay the same recordings, each run with its own world
+    /// (`runner::record`).
     pub fn plans(
         &self,
         out: &Path,
         cells: &[&Cell],
         jobs: usize,
     ) -> anyhow::Result<Vec<(Plan, Vec<Cell>)>> {
+        let mut recorded_as: BTreeMap<&str, String> = BTreeMap::new();
         let mut groups: Vec<((String, u64), Vec<Cell>)> = Vec::new();
         for c in cells {
-            let k = (c.world.clone(), c.seed);
+            let world = if self.cfg.record_once && c.localize.is_none() {
+                match recorded_as.get(c.world.as_str()) {
+                    Some(k) => k.clone(),
+                    None => {
+                        let text = self.worlds.get(&c.world).with_context(|| {
+                            format!("cell {}: no resolved world {}", c.key, c.world)
+                        })?;
+                        let config = sim::SimConfig::from_toml_str(text, &c.world)?;
+                        let k = format!("recorded {}", record_key(&config));
+                        recorded_as.insert(&c.world, k.clone());
+                        k
+                    }
+                }
+            } else {
+                c.world.clone()
+            };
+            let k = (world, c.seed);
             match groups.iter_mut().find(|(g, _)| *g == k) {
                 Some((_, v)) => v.push((*c).clone()),
                 None => groups.push((k, vec![(*c).clone()])),
@@ -697,7 +717,10 @@ impl Sweep {
         }
         groups
             .into_iter()
-            .map(|((world, seed), cells)| {
+            .map(|((_, seed), cells)| {
+                // The first cell's world (the plan's recordings are made from it).
+                let world = cells[0].world.clone();
+                let shared = cells.iter().all(|c| c.world == world);
                 let mut scenarios: Vec<String> = Vec::new();
                 for c in &cells {
                     if !scenarios.contains(&c.scenario) {
@@ -711,7 +734,14 @@ impl Sweep {
                         scenarios,
                         runs: cells
                             .iter()
-                            .map(|c| c.planned_run(out))
+                            .map(|c| {
+                                let mut run = c.planned_run(out)?;
+                                if !shared {
+                                    run.world =
+                                        Some(out.join("worlds").join(format!("{}.toml", c.world)));
+                                }
+                                Ok(run)
+                            })
                             .collect::<anyhow::Result<_>>()?,
                         jobs,
                         timeout: Duration::from_secs_f64(self.cfg.timeout_s),
@@ -728,6 +758,12 @@ impl Sweep {
             })
             .collect()
     }
+}
+
+/// A short hash of what a recording of `config` depends on
+/// (`runner::record::recorded_world_text`).
+fn record_key(config: &sim::SimConfig) -> String {
+    short_hash(crate::runner::recorded_world_text(config).as_bytes())
 }
 
 /// The folder of a sweep's recordings (`record_once`): what a stopped sweep had recorded
@@ -880,6 +916,117 @@ pub fn run_local(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With `record_once`, cells whose worlds differ only in their GNSS receiver make one
+    /// plan (one recording per scenario), each run with its own world; a world that differs
+    /// in anything else, another seed, or no `record_once`, another plan.
+    #[test]
+    fn worlds_that_differ_only_in_their_receiver_share_a_plan_when_recorded() {
+        let world = |extra: &str| {
+            let base = if extra == "staged" {
+                sim::DEFAULT_CONFIG_TOML.replacen("growth_stage = 3.0", "growth_stage = 1.0", 1)
+            } else {
+                sim::DEFAULT_CONFIG_TOML.to_owned()
+            };
+            let extra = extra.trim_start_matches("staged");
+            let text = format!("{base}\n{extra}");
+            sim::SimConfig::from_toml_str(&text, "w")
+                .expect("world")
+                .to_toml_string()
+        };
+        let worlds: BTreeMap<String, String> = [
+            ("plain", world("")),
+            ("rtk", world("[sensors.gnss]\nprofile = \"rtk\"\n")),
+            (
+                "consumer",
+                world("[sensors.gnss]\nprofile = \"consumer\"\n"),
+            ),
+            ("staged", world("staged")),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_owned(), v))
+        .collect();
+        assert_ne!(worlds["staged"], worlds["plain"]);
+        let cell = |world: &str, seed: u64| Cell {
+            key: format!("{world}-{seed}"),
+            scenario: "s0".into(),
+            label: "x".into(),
+            plugin: PathBuf::from("x.so"),
+            params_toml: String::new(),
+            pace: Default::default(),
+            queue_size: None,
+            base_dir: None,
+            seed,
+            point: Vec::new(),
+            world: world.into(),
+            localize: None,
+        };
+        let cells = vec![
+            cell("plain", 0),
+            cell("rtk", 0),
+            cell("consumer", 0),
+            cell("staged", 0),
+            cell("rtk", 1),
+        ];
+        let sweep = |record_once: bool| Sweep {
+            file: PathBuf::from("s.toml"),
+            cfg: BenchConfig::from_toml(
+                &format!(
+                    "scenarios = [\"s0\"]\nrecord_once = {record_once}\n[[plugins]]\nname = \"x\"\n"
+                ),
+                Path::new("s.toml"),
+            )
+            .expect("bench file"),
+            axes: Vec::new(),
+            worlds: worlds.clone(),
+            cells: cells.clone(),
+            seeds: vec![0, 1],
+            exe_hash: "h".into(),
+        };
+        let out = Path::new("/sweep");
+        let refs: Vec<&Cell> = cells.iter().collect();
+        let shape = |record_once: bool| -> Vec<Vec<(String, Option<PathBuf>)>> {
+            sweep(record_once)
+                .plans(out, &refs, 2)
+                .expect("plans")
+                .into_iter()
+                .map(|(plan, cells)| {
+                    assert_eq!(plan.runs.len(), cells.len());
+                    assert_eq!(
+                        plan.world.as_deref(),
+                        Some(
+                            out.join(format!("worlds/{}.toml", cells[0].world))
+                                .as_path()
+                        ),
+                        "the plan's world is its first cell's"
+                    );
+                    cells
+                        .iter()
+                        .zip(&plan.runs)
+                        .map(|(c, r)| (c.key.clone(), r.world.clone()))
+                        .collect()
+                })
+                .collect()
+        };
+        let own = |w: &str| Some(out.join(format!("worlds/{w}.toml")));
+        assert_eq!(
+            shape(true),
+            [
+                vec![
+                    ("plain-0".to_owned(), own("plain")),
+                    ("rtk-0".to_owned(), own("rtk")),
+                    ("consumer-0".to_owned(), own("consumer")),
+                ],
+                vec![("staged-0".to_owned(), None)],
+                vec![("rtk-1".to_owned(), None)],
+            ]
+        );
+        assert_eq!(
+            shape(false),
+            ["plain-0", "rtk-0", "consumer-0", "staged-0", "rtk-1"]
+                .map(|k| vec![(k.to_owned(), None)])
+        );
+    }
 
     #[test]
     fn dotted_paths_set_nested_keys_and_refuse_tables() {

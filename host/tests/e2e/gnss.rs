@@ -311,3 +311,66 @@ fn gps_factors_pull_a_drifting_lio_sam_toward_the_fixes() {
         "GPS factors: {held:.3} m, without {drift:.3} m"
     );
 }
+
+/// A sweep over receivers records each scenario once for all of them (`record_once`: a
+/// recording leaves GNSS out, each run simulates its own receiver as it replays): every
+/// run's estimate is the same bytes as the same sweep's live runs give, for no receiver, a
+/// consumer one and RTK, and the runs with a receiver were fed from a recording.
+#[test]
+fn a_sweep_over_receivers_replays_one_recording_as_its_live_runs() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let w = world(tmp.path(), "none");
+    let body = format!(
+        "scenarios = [\"s1\"]\nseeds = [0]\nmax_time_s = 12.0\nworld = {:?}\n\
+         [variants.none]\n\
+         [variants.consumer]\n\"sensors.gnss.profile\" = \"consumer\"\n\
+         [variants.rtk]\n\"sensors.gnss.profile\" = \"rtk\"\n\
+         [[plugins]]\nname = \"ekf\"\n",
+        w.to_str().expect("utf-8")
+    );
+    let estimates = |record_once: bool| {
+        let name = if record_once { "recorded" } else { "live" };
+        let file = tmp.path().join(format!("{name}.toml"));
+        let text = if record_once {
+            format!("record_once = true\n{body}")
+        } else {
+            body.clone()
+        };
+        std::fs::write(&file, text).expect("sweep file");
+        let out = tmp.path().join(name);
+        let args: Vec<OsString> = vec![
+            "sweep".into(),
+            file.into(),
+            "--out".into(),
+            out.clone().into(),
+        ];
+        vinebench_ok(&args, name);
+        let mut by_variant = std::collections::BTreeMap::new();
+        for entry in std::fs::read_dir(out.join("runs")).expect("runs") {
+            let dir = entry.expect("entry").path();
+            let cell = json(&dir.join("cell.json"));
+            assert_eq!(cell["status"], "ok", "{name}: {}", dir.display());
+            let variant = cell["point"][0][1].as_str().expect("variant").to_owned();
+            let source = json(&dir.join("timing.json"))["source"].clone();
+            let estimate = std::fs::read(dir.join("estimate.tum")).expect("estimate");
+            by_variant.insert(variant, (source, estimate));
+        }
+        by_variant
+    };
+    let (live, recorded) = (estimates(false), estimates(true));
+    assert_eq!(
+        live.keys().collect::<Vec<_>>(),
+        ["\"consumer\"", "\"none\"", "\"rtk\""]
+    );
+    for (variant, (source, estimate)) in &recorded {
+        assert_eq!(source, "recording", "{variant}: fed from the recording");
+        assert!(
+            *estimate == live[variant].1,
+            "{variant}: the replayed run's estimate differs from the live one's"
+        );
+    }
+    assert_ne!(
+        recorded["\"rtk\""].1, recorded["\"none\""].1,
+        "the receiver reached the ekf"
+    );
+}
