@@ -1,16 +1,18 @@
 #!/usr/bin/env bash
 # Issue 47's GNSS study (docs/gnss/): each system with its GNSS on, on S0-S3 under `typical`
 # and `field`, three seeds, with no receiver, a consumer one, RTK under the block's sky and
-# RTK under an open sky (configs/study/gnss/<world>.toml). Each cell is recorded once and
-# replayed to every system. Many hours on two cores; spread it over sessions:
+# RTK under an open sky (configs/study/gnss/<world>.toml). Each route of a (profile, seed)
+# is recorded once, without GNSS, and replayed to every system under every receiver, each
+# run simulating its own receiver (runner::record). Hours on two cores; spread it over
+# sessions:
 #   bash scripts/study-gnss.sh [WORLD...]   run (or resume) the named worlds' sweeps
 #                                           (our-world by default)
 #   bash scripts/study-gnss.sh --save       keep the finished runs' small files in git
 #   bash scripts/study-gnss.sh --table      write docs/gnss/study.md from what is kept
 # What --save keeps in docs/gnss/runs/<world>/<key>/ (cell.json, metrics.json, timing.json)
 # is what counts: a sweep runs only the cells not kept yet, in the order `typical` before
-# `field`, then seed, then receiver (scripts/study-gnss.py --resume), on any machine and
-# after any rebuild.
+# `field`, then seed, every receiver of a seed in one sweep (scripts/study-gnss.py
+# --resume), on any machine and after any rebuild.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 results=results/gnss
