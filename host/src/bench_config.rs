@@ -161,6 +161,11 @@ pub struct BenchConfig {
     /// `scenario,system,max,mean,median,rmse,std`): its figures are shown beside ours in
     /// the printed table, `table.md` and the report, for the plugins whose label matches.
     pub paper_table: Option<PathBuf>,
+    /// Each system's speed in a bench run elsewhere (relative to this file; TOML,
+    /// `[wall_s_per_simulated_s]` by label, `scripts/timing-prior.py`): the progress
+    /// estimate's prediction where the results folder holds no previous results, rescaled
+    /// to this machine by the runs as they end.
+    pub timing_prior: Option<PathBuf>,
     pub plugins: Vec<PluginEntry>,
     /// Localisation runs after the mapping runs (`vinebench localize`'s bench form): each
     /// starts a plugin from a map one of this bench's runs built.
@@ -257,6 +262,7 @@ impl BenchConfig {
         let base = path.parent().unwrap_or(Path::new("."));
         cfg.world = cfg.world.map(|w| base.join(w));
         cfg.paper_table = cfg.paper_table.map(|p| base.join(p));
+        cfg.timing_prior = cfg.timing_prior.map(|p| base.join(p));
         cfg.plugin_dirs = cfg.plugin_dirs.iter().map(|d| base.join(d)).collect();
         for p in &mut cfg.plugins {
             p.path = p.path.as_ref().map(|q| base.join(q));

@@ -126,7 +126,11 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             .then(|| PathBuf::from(format!("{}.recordings", out.display()))),
         bars: true,
     };
-    let outcomes = bench(&plan, &out, &labels, cfg.paper_table.as_deref())?;
+    let prior = match &cfg.timing_prior {
+        Some(path) => read_timing_prior(path)?,
+        None => Costs::new(),
+    };
+    let outcomes = bench(&plan, &out, &labels, cfg.paper_table.as_deref(), &prior)?;
     failures_exit(&outcomes, args.allow_failures)
 }
 
@@ -182,12 +186,15 @@ fn fingerprint(plan: &Plan) -> anyhow::Result<String> {
 /// Runs a plan into the results folder `out` (written whole, then moved into place), writes
 /// its reports (with `paper_table`, the published table it reproduces, copied in and shown
 /// beside its figures), and prints its table and where the results are. A failed run does
-/// not fail the bench: it is in the table with its reason.
+/// not fail the bench: it is in the table with its reason. `prior`: each system's speed for
+/// the progress estimate where `out` holds no previous results (a bench file's
+/// `timing_prior`; empty: measured as the runs go).
 pub fn bench(
     plan: &Plan,
     out: &Path,
     labels: &[String],
     paper_table: Option<&Path>,
+    prior: &Costs,
 ) -> anyhow::Result<Vec<RunOutcome>> {
     crate::runner::interrupt::install();
     if let Some(path) = paper_table {
@@ -203,7 +210,7 @@ pub fn bench(
                 .is_file()
         })
     };
-    match bench_in(plan, out, labels, paper_table, staging, resumed) {
+    match bench_in(plan, out, labels, paper_table, prior, staging, resumed) {
         Ok(outcomes) => Ok(outcomes),
         Err((e, Some(staging))) => {
             // A failure of the bench itself: what finished stays for a resume, a folder with
@@ -223,6 +230,7 @@ fn bench_in(
     out: &Path,
     labels: &[String],
     paper_table: Option<&Path>,
+    prior: &Costs,
     staging: Staging,
     resumed: bool,
 ) -> Result<Vec<RunOutcome>, (anyhow::Error, Option<Staging>)> {
@@ -291,7 +299,7 @@ fn bench_in(
             ..plan.clone()
         };
         ran.extend(
-            tri!(run_phase(&sub, out, staging.dir()))
+            tri!(run_phase(&sub, out, staging.dir(), prior))
                 .into_iter()
                 .zip(phase),
         );
@@ -346,12 +354,15 @@ fn bench_in(
 }
 
 /// Runs `sub`'s runs in `dir` with a progress display; their outcomes in order.
-fn run_phase(sub: &Plan, out: &Path, dir: &Path) -> anyhow::Result<Vec<RunOutcome>> {
+fn run_phase(sub: &Plan, out: &Path, dir: &Path, prior: &Costs) -> anyhow::Result<Vec<RunOutcome>> {
     // Each run's predicted duration: its route's length times its system's cost in the
-    // previous results at `out`, if any (Progress says how the estimate uses them); none:
-    // each system's speed is measured as it runs.
+    // previous results at `out`, if any, else in `prior` (Progress says how the estimate
+    // uses them); neither: each system's speed is measured as it runs.
     let route_s = crate::runner::route_seconds(sub).ok();
-    let costs = previous_costs(out);
+    let mut costs = previous_costs(out);
+    if costs.is_empty() {
+        costs = prior.clone();
+    }
     let predicted = route_s.as_ref().map(|route_s| {
         let fallback = if costs.is_empty() {
             1.0
@@ -389,12 +400,38 @@ fn run_phase(sub: &Plan, out: &Path, dir: &Path) -> anyhow::Result<Vec<RunOutcom
     )
 }
 
-/// After Ctrl-C: keeps the partial folder if any run finished (the same command resumes
-/// it), else removes it; the error says which.
+/// Each system's wall seconds per simulated second, by label.
+pub type Costs = std::collections::BTreeMap<String, f64>;
+
+/// What a bench file's `timing_prior` holds: each system's wall seconds per simulated second
+/// in a bench run elsewhere (`scripts/timing-prior.py` writes it from a results folder).
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TimingPrior {
+    wall_s_per_simulated_s: Costs,
+}
+
+/// Reads a `timing_prior` file; a missing or malformed file, or a speed that is not a
+/// positive number, is an error naming it.
+pub fn read_timing_prior(path: &Path) -> anyhow::Result<Costs> {
+    let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+    let prior: TimingPrior = toml::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
+    for (label, cost) in &prior.wall_s_per_simulated_s {
+        anyhow::ensure!(
+            cost.is_finite() && *cost > 0.0,
+            "{}: {label} = {cost}: a speed must be a positive number of wall seconds per \
+             simulated second",
+            path.display()
+        );
+    }
+    Ok(prior.wall_s_per_simulated_s)
+}
+
 /// Each system's wall seconds per simulated second in the results already at `out` (a
 /// previous bench of the same name: `out/<scenario>/<label>/timing.json`), all of
 /// its runs there (their wall time over their simulated time); empty where there are none.
-fn previous_costs(out: &Path) -> std::collections::BTreeMap<String, f64> {
+fn previous_costs(out: &Path) -> Costs {
     let mut sums: std::collections::BTreeMap<String, (f64, f64)> = Default::default();
     let Ok(scenarios) = std::fs::read_dir(out) else {
         return Default::default();
@@ -422,6 +459,8 @@ fn previous_costs(out: &Path) -> std::collections::BTreeMap<String, f64> {
         .collect()
 }
 
+/// After Ctrl-C: keeps the partial folder if any run finished (the same command resumes
+/// it), else removes it; the error says which.
 fn interrupted(staging: Staging, out: &Path, outcomes: &[RunOutcome]) -> anyhow::Error {
     let finished = outcomes
         .iter()
@@ -445,4 +484,43 @@ fn interrupted(staging: Staging, out: &Path, outcomes: &[RunOutcome]) -> anyhow:
         )
     };
     crate::cmd::Exit::interrupted(message).into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `timing_prior` file is read by label; a malformed one, an unknown key or a speed
+    /// that is not positive is an error naming the file.
+    #[test]
+    fn a_timing_prior_is_read_or_refused_by_name() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let write = |text: &str| {
+            let path = dir.path().join("prior.toml");
+            std::fs::write(&path, text).expect("write");
+            path
+        };
+        let prior = read_timing_prior(&write(
+            "# made elsewhere\n[wall_s_per_simulated_s]\n\"lio-sam\" = 0.09\nrtabmap = 1.5\n",
+        ))
+        .expect("a good prior");
+        assert_eq!(prior.len(), 2);
+        assert_eq!(prior["lio-sam"], 0.09);
+        assert_eq!(prior["rtabmap"], 1.5);
+        for (text, says) in [
+            ("[wall_s_per_simulated_s]\nx = 0.0\n", "x = 0"),
+            ("[wall_s_per_simulated_s]\nx = -1.0\n", "x = -1"),
+            ("[wall_s_per_simulated_s]\nx = \"fast\"\n", "invalid type"),
+            ("[speeds]\nx = 1.0\n", "unknown field"),
+        ] {
+            let err = format!("{:#}", read_timing_prior(&write(text)).expect_err(text));
+            assert!(
+                err.contains("prior.toml") && err.contains(says),
+                "{text}: {err}"
+            );
+        }
+        let missing = dir.path().join("none.toml");
+        let err = format!("{:#}", read_timing_prior(&missing).expect_err("missing"));
+        assert!(err.contains("none.toml"), "{err}");
+    }
 }

@@ -141,7 +141,13 @@ pub fn run_with(
         record_once: None,
         bars: true,
     };
-    let outcomes = crate::cmd::bench::bench(&plan, &out, std::slice::from_ref(&label), None)?;
+    let outcomes = crate::cmd::bench::bench(
+        &plan,
+        &out,
+        std::slice::from_ref(&label),
+        None,
+        &Default::default(),
+    )?;
     // One run: its failure is the command's failure (the results folder is still written).
     match outcomes.first().map(|r| &r.status) {
         Some(crate::results::RunStatus::Failed(why)) if !args.allow_failures => Err(
