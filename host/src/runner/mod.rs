@@ -808,3 +808,61 @@ fn finish_run(
         folder,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With `record_once`, a run whose own world differs from the plan's in more than its
+    /// GNSS receiver cannot replay the plan's recordings: refused by name before anything
+    /// runs or is recorded.
+    #[test]
+    fn a_run_whose_world_differs_in_more_than_its_receiver_is_refused() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let plan_world = dir.path().join("plan.toml");
+        std::fs::write(&plan_world, sim::DEFAULT_CONFIG_TOML).expect("world");
+        let staged = dir.path().join("staged.toml");
+        std::fs::write(
+            &staged,
+            sim::DEFAULT_CONFIG_TOML.replacen("growth_stage = 3.0", "growth_stage = 1.0", 1),
+        )
+        .expect("world");
+        let plan = Plan {
+            world: Some(plan_world),
+            seed: 0,
+            scenarios: vec!["s0".into()],
+            runs: vec![PlannedRun {
+                scenario: "s0".into(),
+                label: "x".into(),
+                plugin: dir.path().join("x.so"),
+                params_toml: String::new(),
+                pace: Pace::Free,
+                queue_size: None,
+                drops: None,
+                base_dir: None,
+                localize: None,
+                world: Some(staged.clone()),
+            }],
+            jobs: 1,
+            timeout: Duration::from_secs(60),
+            memory_limit_mb: 1024,
+            alignment: eval::Alignment::Se3,
+            dataset: None,
+            max_time_s: Some(1.0),
+            share_simulation: false,
+            record_once: Some(dir.path().join("recordings")),
+            bars: false,
+        };
+        let err = execute(&plan, &dir.path().join("work"), &|_, _| {})
+            .expect_err("a world that records otherwise");
+        let err = format!("{err:#}");
+        assert!(
+            err.contains("s0/x") && err.contains("staged.toml") && err.contains("GNSS receiver"),
+            "{err}"
+        );
+        let recordings = std::fs::read_dir(dir.path().join("recordings"))
+            .map(|d| d.count())
+            .unwrap_or(0);
+        assert_eq!(recordings, 0, "nothing recorded");
+    }
+}
