@@ -316,11 +316,25 @@ pub fn replay_messages(
     path: &Path,
     sensors: SensorSet,
 ) -> anyhow::Result<impl Iterator<Item = Message>> {
+    Ok(checked_replay(path, sensors)?.map(|(_, m)| m))
+}
+
+/// The recording at `path` read and decoded whole once (an error here for a damaged or
+/// foreign file), then streamed again, each message with when it became available
+/// ([`Replay::next_timed`]); panics only if the file changes on disk in between.
+fn checked_replay(
+    path: &Path,
+    sensors: SensorSet,
+) -> anyhow::Result<impl Iterator<Item = (i64, Message)> + Send + use<>> {
     for message in Replay::open(path, sensors)? {
         message?;
     }
-    let replay = Replay::open(path, sensors)?;
-    Ok(replay.map(|m| m.unwrap_or_else(|e| panic!("{e} (the file changed during the replay)"))))
+    let mut replay = Replay::open(path, sensors)?;
+    Ok(std::iter::from_fn(move || {
+        replay
+            .next_timed()
+            .map(|m| m.unwrap_or_else(|e| panic!("{e} (the file changed during the replay)")))
+    }))
 }
 
 /// [`replay_messages`] with `live`'s messages merged in where a live stream of both would
@@ -334,17 +348,8 @@ pub fn replay_with_live<'a>(
     sensors: SensorSet,
     live: impl Iterator<Item = Message> + Send + 'a,
 ) -> anyhow::Result<impl Iterator<Item = Message> + Send + 'a> {
-    for message in Replay::open(path, sensors)? {
-        message?;
-    }
-    let mut replay = Replay::open(path, sensors)?;
-    let recorded = std::iter::from_fn(move || {
-        replay
-            .next_timed()
-            .map(|m| m.unwrap_or_else(|e| panic!("{e} (the file changed during the replay)")))
-    });
     Ok(Merge {
-        recorded: recorded.peekable(),
+        recorded: checked_replay(path, sensors)?.peekable(),
         live: live.peekable(),
     })
 }

@@ -922,26 +922,25 @@ mod tests {
     /// in anything else, another seed, or no `record_once`, another plan.
     #[test]
     fn worlds_that_differ_only_in_their_receiver_share_a_plan_when_recorded() {
-        let world = |extra: &str| {
-            let base = if extra == "staged" {
-                sim::DEFAULT_CONFIG_TOML.replacen("growth_stage = 3.0", "growth_stage = 1.0", 1)
-            } else {
-                sim::DEFAULT_CONFIG_TOML.to_owned()
-            };
-            let extra = extra.trim_start_matches("staged");
-            let text = format!("{base}\n{extra}");
+        let plain = sim::DEFAULT_CONFIG_TOML;
+        let world = |text: String| {
             sim::SimConfig::from_toml_str(&text, "w")
                 .expect("world")
                 .to_toml_string()
         };
+        let receiver = |profile: &str| {
+            world(format!(
+                "{plain}\n[sensors.gnss]\nprofile = \"{profile}\"\n"
+            ))
+        };
         let worlds: BTreeMap<String, String> = [
-            ("plain", world("")),
-            ("rtk", world("[sensors.gnss]\nprofile = \"rtk\"\n")),
+            ("plain", world(plain.to_owned())),
+            ("rtk", receiver("rtk")),
+            ("consumer", receiver("consumer")),
             (
-                "consumer",
-                world("[sensors.gnss]\nprofile = \"consumer\"\n"),
+                "staged",
+                world(plain.replacen("growth_stage = 3.0", "growth_stage = 1.0", 1)),
             ),
-            ("staged", world("staged")),
         ]
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v))
