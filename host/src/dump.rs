@@ -32,8 +32,8 @@ pub struct Dump {
     /// Encodes and writes the camera's PNGs beside the simulation (started with the first
     /// frame).
     images: Option<ImageWriter>,
-    /// The camera's rate and `base_from_optical`, for `rgbd/camera.yaml`.
-    camera: (f64, nalgebra::Isometry3<f64>),
+    /// The camera's rate, `base_from_optical` and lens, for `rgbd/camera.yaml`.
+    camera: (f64, nalgebra::Isometry3<f64>, [f64; 5]),
 }
 
 /// One PNG to encode and write: its path, size, colour type and samples (16-bit ones
@@ -142,6 +142,7 @@ impl Dump {
             camera: (
                 config.sensors.camera.rate_hz,
                 config.sensors.camera.mount.base_from_sensor() * sim::camera::camera_from_optical(),
+                config.sensors.camera.distortion,
             ),
         })
     }
@@ -363,14 +364,21 @@ fn open<'a>(
 }
 
 /// `camera.yaml`: the camera's intrinsics in the keys of ORB-SLAM2/3's RGB-D settings files
-/// (OpenCV `FileStorage` YAML; pinhole without distortion, depth PNGs in metres × 5000), and
-/// where it sits on the robot (`groundtruth.tum` is the base's pose, not the camera's).
+/// (OpenCV `FileStorage` YAML; the lens's `plumb_bob` coefficients, zero for a rectified
+/// image; depth PNGs in metres × 5000), and where it sits on the robot (`groundtruth.tum`
+/// is the base's pose, not the camera's).
 fn write_camera_yaml(
     path: &Path,
     frame: &sim::sensors::RgbdFrame,
-    (rate_hz, base_from_optical): (f64, nalgebra::Isometry3<f64>),
+    (rate_hz, base_from_optical, distortion): (f64, nalgebra::Isometry3<f64>, [f64; 5]),
 ) -> anyhow::Result<()> {
     let [fx, fy, cx, cy] = frame.image.intrinsics;
+    let [k1, k2, p1, p2, k3] = distortion;
+    let lens = if distortion == [0.0; 5] {
+        "pinhole, no distortion"
+    } else {
+        "a lens's raw image (plumb_bob)"
+    };
     let m = base_from_optical.to_homogeneous();
     let rows: Vec<String> = (0..4)
         .map(|r| {
@@ -382,11 +390,11 @@ fn write_camera_yaml(
         .collect();
     let text = format!(
         "%YAML:1.0\n\
-         # The simulated RGB-D camera: pinhole, no distortion, colour and depth registered (one\n\
+         # The simulated RGB-D camera: {lens}, colour and depth registered (one\n\
          # image plane); depth PNG values are metres x DepthMapFactor, 0 where invalid.\n\
          Camera.type: \"PinHole\"\n\
          Camera.fx: {fx}\nCamera.fy: {fy}\nCamera.cx: {cx}\nCamera.cy: {cy}\n\
-         Camera.k1: 0.0\nCamera.k2: 0.0\nCamera.p1: 0.0\nCamera.p2: 0.0\nCamera.k3: 0.0\n\
+         Camera.k1: {k1:?}\nCamera.k2: {k2:?}\nCamera.p1: {p1:?}\nCamera.p2: {p2:?}\nCamera.k3: {k3:?}\n\
          Camera.width: {}\nCamera.height: {}\nCamera.fps: {rate_hz}\nCamera.RGB: 1\n\
          DepthMapFactor: 5000.0\n\
          # base_link from the camera's optical frame (x right, y down, z forward), row-major,\n\

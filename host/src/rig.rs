@@ -154,17 +154,26 @@ pub fn rig(cfg: &SimConfig) -> Rig {
     .with_mount(&s.lidar.mount.base_from_sensor());
     let cam = &s.camera;
     let k = sim::camera::Intrinsics::from_config(cam);
+    let mut camera_figures = vec![
+        ("width", cam.width as f64),
+        ("height", cam.height as f64),
+        ("fx", k.fx),
+        ("fy", k.fy),
+        ("cx", k.cx),
+        ("cy", k.cy),
+        ("min_depth_m", cam.min_depth_m),
+        ("max_depth_m", cam.max_depth_m),
+    ];
+    if cam.distortion != [0.0; 5] {
+        // A lens's raw image: its plumb_bob coefficients (absent: a rectified image).
+        camera_figures.extend(
+            ["k1", "k2", "p1", "p2", "k3"]
+                .into_iter()
+                .zip(cam.distortion),
+        );
+    }
     let camera = SensorSpec {
-        intrinsics: figures(&[
-            ("width", cam.width as f64),
-            ("height", cam.height as f64),
-            ("fx", k.fx),
-            ("fy", k.fy),
-            ("cx", k.cx),
-            ("cy", k.cy),
-            ("min_depth_m", cam.min_depth_m),
-            ("max_depth_m", cam.max_depth_m),
-        ]),
+        intrinsics: figures(&camera_figures),
         noise: noise_or_zero(cam.noise, &[("rgb_sigma", cam.rgb_sigma)]),
         ..spec("camera", SensorKind::Rgbd, cam.rate_hz)
     }

@@ -52,7 +52,7 @@ pub use messages::{
     gray_from_rgb,
 };
 pub use parameters::Parameters;
-pub use rig::{Pinhole, Rig, SensorKind, SensorSpec};
+pub use rig::{Lens, Pinhole, Rig, SensorKind, SensorSpec};
 pub use stages::Stages;
 pub use system::{
     Event, EventKind, GRID_MAP_FORMAT, GRID_MAP_VERSION, InitialGuess, MapStart, Mode,

@@ -75,6 +75,43 @@ impl Pinhole {
     }
 }
 
+/// A camera's lens as the rig gives it: OpenCV's `plumb_bob` coefficients (`k1`, `k2`,
+/// `p1`, `p2`, `k3` among the camera's intrinsics; absent: the frames are rectified, a
+/// pinhole's). Its frames are then the lens's raw images and their `[fx, fy, cx, cy]` its
+/// camera matrix, as ROS's `camera_info` `k` and `d` describe a raw image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lens {
+    pub k1: f64,
+    pub k2: f64,
+    pub p1: f64,
+    pub p2: f64,
+    pub k3: f64,
+}
+
+impl Lens {
+    /// The pixel `(u, v)` of a raw image of camera `k` moved to where a pinhole would have
+    /// seen its ray: OpenCV's `undistortPoints` fixed-point iteration, `iterations` times
+    /// (OpenCV 3's default is 5, which ORB-SLAM2 uses through it).
+    pub fn undistort_pixel(
+        &self,
+        k: &Pinhole,
+        (u, v): (f64, f64),
+        iterations: usize,
+    ) -> (f64, f64) {
+        let (x0, y0) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
+        let (mut x, mut y) = (x0, y0);
+        for _ in 0..iterations {
+            let r2 = x * x + y * y;
+            let inv_radial = 1.0 / (1.0 + ((self.k3 * r2 + self.k2) * r2 + self.k1) * r2);
+            let dx = 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
+            let dy = self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
+            x = (x0 - dx) * inv_radial;
+            y = (y0 - dy) * inv_radial;
+        }
+        (k.fx * x + k.cx, k.fy * y + k.cy)
+    }
+}
+
 /// One sensor of the rig.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SensorSpec {
@@ -120,6 +157,29 @@ impl SensorSpec {
             width: self.positive("width")?,
             height: self.positive("height")?,
         })
+    }
+
+    /// A camera's lens: `None` when its intrinsics carry no `k1`...`k3` (or all zero: a
+    /// rectified image); an error when only some are there or one is not finite.
+    pub fn lens(&self) -> Result<Option<Lens>, PluginError> {
+        let keys = ["k1", "k2", "p1", "p2", "k3"];
+        let got: Vec<Option<f64>> = keys
+            .iter()
+            .map(|k| self.intrinsics.get(*k).copied())
+            .collect();
+        if got.iter().all(Option::is_none) {
+            return Ok(None);
+        }
+        let mut d = [0.0; 5];
+        for ((slot, value), key) in d.iter_mut().zip(&got).zip(keys) {
+            *slot = value.filter(|v| v.is_finite()).ok_or_else(|| {
+                PluginError::new(format!(
+                    "the camera's lens lacks a finite {key} (a lens gives k1, k2, p1, p2 and k3)"
+                ))
+            })?;
+        }
+        let [k1, k2, p1, p2, k3] = d;
+        Ok((d != [0.0; 5]).then_some(Lens { k1, k2, p1, p2, k3 }))
     }
 
     pub fn base_from_sensor(&self) -> Isometry3<f64> {
@@ -180,5 +240,77 @@ impl Rig {
 
     pub fn from_toml(text: &str) -> Result<Self, String> {
         toml::from_str(text).map_err(|e| format!("rig description: {}", e.message()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(extra: &[(&str, f64)]) -> SensorSpec {
+        let mut intrinsics: BTreeMap<String, f64> = [
+            ("fx", 355.0),
+            ("fy", 355.0),
+            ("cx", 319.5),
+            ("cy", 239.5),
+            ("width", 640.0),
+            ("height", 480.0),
+        ]
+        .iter()
+        .map(|&(k, v)| (k.to_owned(), v))
+        .collect();
+        intrinsics.extend(extra.iter().map(|&(k, v)| (k.to_owned(), v)));
+        SensorSpec {
+            name: "camera".into(),
+            kind: SensorKind::Rgbd,
+            rate_hz: 30.0,
+            base_from_sensor_xyz: [0.0; 3],
+            base_from_sensor_xyzw: [0.0, 0.0, 0.0, 1.0],
+            intrinsics,
+            noise: BTreeMap::new(),
+        }
+    }
+
+    /// A lens is all five coefficients or none; undistorting a pixel finds the pinhole
+    /// pixel the lens moved there.
+    #[test]
+    fn a_lens_is_read_whole_and_undistorts_its_pixels() {
+        assert_eq!(camera(&[]).lens().unwrap(), None);
+        let zero = [
+            ("k1", 0.0),
+            ("k2", 0.0),
+            ("p1", 0.0),
+            ("p2", 0.0),
+            ("k3", 0.0),
+        ];
+        assert_eq!(camera(&zero).lens().unwrap(), None, "zeros: rectified");
+        let err = camera(&[("k1", 0.07)]).lens().unwrap_err().to_string();
+        assert!(err.contains("finite k2"), "{err}");
+        let kinect = [
+            ("k1", 0.0717),
+            ("k2", -0.1355),
+            ("p1", 0.0016),
+            ("p2", 0.0024),
+            ("k3", 0.0595),
+        ];
+        let spec = camera(&kinect);
+        let lens = spec.lens().unwrap().expect("a lens");
+        let k = spec.pinhole().unwrap();
+        // A pinhole pixel, moved by the lens (plumb_bob), and back.
+        let (x, y) = ((500.0 - k.cx) / k.fx, (350.0 - k.cy) / k.fy);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (lens.k1 + r2 * (lens.k2 + r2 * lens.k3));
+        let xd = x * radial + 2.0 * lens.p1 * x * y + lens.p2 * (r2 + 2.0 * x * x);
+        let yd = y * radial + lens.p1 * (r2 + 2.0 * y * y) + 2.0 * lens.p2 * x * y;
+        let raw = (k.fx * xd + k.cx, k.fy * yd + k.cy);
+        assert!(
+            (raw.0 - 600.0).hypot(raw.1 - 40.0) > 1.0,
+            "the lens moves it"
+        );
+        let (u, v) = lens.undistort_pixel(&k, raw, 20);
+        assert!(
+            (u - 500.0).abs() < 1e-6 && (v - 350.0).abs() < 1e-6,
+            "raw {raw:?} undistorted to ({u}, {v})"
+        );
     }
 }

@@ -379,7 +379,7 @@ mod tests {
         let f = frame();
         let color = color_image(&encode::color_image(&f)).unwrap();
         let depth = depth_image(&encode::depth_image(&f)).unwrap();
-        let back = camera_info(&encode::camera_info(&f), color, depth).unwrap();
+        let back = camera_info(&encode::camera_info(&f, &[0.0; 5]), color, depth).unwrap();
         let bits = |d: &[f32]| d.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
         assert_eq!(back.stamp_ns, f.stamp_ns);
         assert_eq!((back.image.width, back.image.height), (3, 2));
@@ -391,6 +391,20 @@ mod tests {
         );
     }
 
+    /// A lens's coefficients are `camera_info`'s `d`, after its size and model.
+    #[test]
+    fn camera_info_carries_the_lens() {
+        let lens = [0.0717, -0.1355, 0.0016, 0.0024, 0.0595];
+        let bytes = encode::camera_info(&frame(), &lens);
+        let mut r = CdrReader::new(&bytes).unwrap();
+        header(&mut r).unwrap();
+        assert_eq!((r.u32().unwrap(), r.u32().unwrap()), (2, 3));
+        assert_eq!(r.string().unwrap(), "plumb_bob");
+        assert_eq!(r.seq_len().unwrap(), 5);
+        let d: Vec<f64> = (0..5).map(|_| r.f64().unwrap()).collect();
+        assert_eq!(d, lens);
+    }
+
     #[test]
     fn a_frame_of_mismatched_parts_is_refused() {
         let f = frame();
@@ -398,7 +412,7 @@ mod tests {
         later.stamp_ns += 1;
         let color = color_image(&encode::color_image(&f)).unwrap();
         let depth = depth_image(&encode::depth_image(&later)).unwrap();
-        let err = camera_info(&encode::camera_info(&f), color, depth).unwrap_err();
+        let err = camera_info(&encode::camera_info(&f, &[0.0; 5]), color, depth).unwrap_err();
         assert!(err.to_string().contains("33333334"), "{err}");
         // A depth image is not a colour image.
         let err = color_image(&encode::depth_image(&f)).unwrap_err();

@@ -31,7 +31,6 @@ pub(crate) const RGB8: &str = "rgb8";
 pub(crate) const DEPTH_32FC1: &str = "32FC1";
 /// The camera's lens model: `plumb_bob` with all five coefficients zero (a rectified image).
 pub(crate) const DISTORTION_MODEL: &str = "plumb_bob";
-pub(crate) const DISTORTION: [f64; 5] = [0.0; 5];
 
 /// `std_msgs/Header` with the stamp offset by [`EPOCH_NS`].
 pub(crate) fn header(w: &mut CdrWriter, stamp_ns: i64, frame_id: &str) {
@@ -258,17 +257,18 @@ pub(crate) fn depth_image(m: &RgbdFrame) -> Vec<u8> {
     w.finish()
 }
 
-/// `sensor_msgs/CameraInfo` of a frame: its pinhole as `k` and `p`, no distortion, `r`
-/// identity (a monocular camera), no binning, the full image as region of interest.
-pub(crate) fn camera_info(m: &RgbdFrame) -> Vec<u8> {
+/// `sensor_msgs/CameraInfo` of a frame: its camera matrix as `k` and `p`, the lens's
+/// `plumb_bob` coefficients as `d` (zero: a rectified image), `r` identity (a monocular
+/// camera), no binning, the full image as region of interest.
+pub(crate) fn camera_info(m: &RgbdFrame, distortion: &[f64; 5]) -> Vec<u8> {
     let [fx, fy, cx, cy] = m.image.intrinsics;
     let mut w = CdrWriter::with_capacity(512);
     header(&mut w, m.stamp_ns, CAMERA_FRAME);
     w.u32(m.image.height as u32);
     w.u32(m.image.width as u32);
     w.string(DISTORTION_MODEL);
-    w.seq_len(DISTORTION.len());
-    for v in DISTORTION {
+    w.seq_len(distortion.len());
+    for &v in distortion {
         w.f64(v);
     }
     #[rustfmt::skip]

@@ -52,7 +52,7 @@ pub use recorder::Recorder;
 pub use replay::{Replay, replay_messages, replay_with_live};
 pub use results::{JudgedLoop, RunResults, write_results};
 pub use topics::Topic;
-pub use wire::{Assembler, RosMessage, ScanTiming, to_ros};
+pub use wire::{Assembler, RosMessage, WireDetails, to_ros};
 
 /// Simulated time 0 in the file's ROS time: 1.7e9 s after the Unix epoch, in nanoseconds.
 pub const EPOCH_NS: i64 = 1_700_000_000_000_000_000;

@@ -14,14 +14,14 @@ use super::mcap_file::McapFile;
 use super::topics::{
     CAMERA_FRAME, GNSS_FRAME, IMU_FRAME, LASER_BACK_FRAME, LASER_FRONT_FRAME, LIDAR_FRAME, Topic,
 };
-use super::wire::{ScanTiming, to_ros};
+use super::wire::{WireDetails, to_ros};
 use super::{DatasetError, encode};
 
 /// An MCAP recording being written; [`Recorder::finish`] puts it in place.
 pub struct Recorder {
     file: McapFile,
     channels: BTreeMap<Topic, u16>,
-    scan_timing: ScanTiming,
+    wire_details: WireDetails,
 }
 
 impl std::fmt::Debug for Recorder {
@@ -60,7 +60,7 @@ impl Recorder {
         let mut recorder = Self {
             file,
             channels,
-            scan_timing: ScanTiming::new(config),
+            wire_details: WireDetails::new(config),
         };
         let [x, y, z] = s.gnss.mount_xyz_m;
         let gnss =
@@ -99,7 +99,7 @@ impl Recorder {
 
     /// Appends one message, logged at the time it became available.
     pub fn write(&mut self, message: &Message) -> Result<(), DatasetError> {
-        for (topic, ready_ns, data) in to_ros(message, &self.scan_timing) {
+        for (topic, ready_ns, data) in to_ros(message, &self.wire_details) {
             self.put(topic, ready_ns, &data)?;
         }
         Ok(())

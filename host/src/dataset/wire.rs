@@ -11,14 +11,18 @@ use super::decode::{self, Plane};
 use super::topics::{LASER_BACK_FRAME, LASER_FRONT_FRAME, Topic};
 use super::{DatasetError, encode};
 
-/// What a 2D scan's ROS message says that the simulator's does not: per scanner, the scan
-/// period (s) and how long after its stamp a scan is complete (ns), as
+/// What the ROS messages say that the simulator's do not: per 2D scanner, the scan period
+/// (s) and how long after its stamp a scan is complete (ns), as
 /// [`sim::sensors::Scan2dSensor`] times it (the mirror turns once per period, samples
-/// `time_increment` apart).
+/// `time_increment` apart); the camera's lens (`camera_info`'s `d`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ScanTiming([(f32, i64); 2]);
+pub struct WireDetails {
+    scans: [(f32, i64); 2],
+    /// `plumb_bob` `[k1, k2, p1, p2, k3]` (zero: a rectified image).
+    distortion: [f64; 5],
+}
 
-impl ScanTiming {
+impl WireDetails {
     pub fn new(config: &sim::SimConfig) -> Self {
         let timing = |cfg: &sim::config::Scan2dConfig| {
             let angle_increment =
@@ -28,13 +32,16 @@ impl ScanTiming {
             ((1.0 / cfg.rate_hz) as f32, sweep_ns)
         };
         let s = &config.sensors;
-        Self([timing(&s.scan2d_front), timing(&s.scan2d_back)])
+        Self {
+            scans: [timing(&s.scan2d_front), timing(&s.scan2d_back)],
+            distortion: s.camera.distortion,
+        }
     }
 
     fn scan(&self, m: &LaserScan) -> (Topic, &'static str, (f32, i64)) {
         match m.side {
-            ScanSide::Front => (Topic::ScanFront, LASER_FRONT_FRAME, self.0[0]),
-            ScanSide::Back => (Topic::ScanBack, LASER_BACK_FRAME, self.0[1]),
+            ScanSide::Front => (Topic::ScanFront, LASER_FRONT_FRAME, self.scans[0]),
+            ScanSide::Back => (Topic::ScanBack, LASER_BACK_FRAME, self.scans[1]),
         }
     }
 }
@@ -45,7 +52,7 @@ pub type RosMessage = (Topic, i64, Vec<u8>);
 
 /// The ROS 2 messages of one simulator message, in the order a reader needs them: ground
 /// truth as its pose then its twist; a camera frame as colour, depth, then camera info.
-pub fn to_ros(message: &Message, timing: &ScanTiming) -> Vec<RosMessage> {
+pub fn to_ros(message: &Message, details: &WireDetails) -> Vec<RosMessage> {
     match message {
         Message::GroundTruth(m) => vec![
             (Topic::GroundTruth, m.stamp_ns, encode::pose_stamped(m)),
@@ -72,7 +79,7 @@ pub fn to_ros(message: &Message, timing: &ScanTiming) -> Vec<RosMessage> {
             encode::point_cloud(m),
         )],
         Message::Scan2d(m) => {
-            let (topic, frame, (scan_time_s, sweep_ns)) = timing.scan(m);
+            let (topic, frame, (scan_time_s, sweep_ns)) = details.scan(m);
             vec![(
                 topic,
                 m.stamp_ns + sweep_ns,
@@ -84,7 +91,11 @@ pub fn to_ros(message: &Message, timing: &ScanTiming) -> Vec<RosMessage> {
         Message::Rgbd(m) => vec![
             (Topic::ColorImage, m.stamp_ns, encode::color_image(m)),
             (Topic::DepthImage, m.stamp_ns, encode::depth_image(m)),
-            (Topic::CameraInfo, m.stamp_ns, encode::camera_info(m)),
+            (
+                Topic::CameraInfo,
+                m.stamp_ns,
+                encode::camera_info(m, &details.distortion),
+            ),
         ],
     }
 }

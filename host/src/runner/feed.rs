@@ -29,7 +29,7 @@ use sim::sensors::Message;
 use sim::{SensorSet, Simulation};
 
 use super::timing::SimulationCost;
-use crate::dataset::{Assembler, ScanTiming, Topic, to_ros};
+use crate::dataset::{Assembler, Topic, WireDetails, to_ros};
 
 /// Messages the simulation may run ahead of a worker (as in a worker's own simulation).
 pub const AHEAD: usize = 256;
@@ -78,7 +78,7 @@ pub struct Frames(Vec<(u8, i64, Vec<u8>)>);
 
 impl Frames {
     /// The frames of `message`.
-    pub fn encode(message: &Message, timing: &ScanTiming) -> Self {
+    pub fn encode(message: &Message, timing: &WireDetails) -> Self {
         Self(
             to_ros(message, timing)
                 .into_iter()
@@ -249,8 +249,9 @@ pub struct Subscriber<W: Write + Send> {
 pub struct Feed {
     /// Simulated time to stop at (the route limit), ns; `None`: the whole route.
     pub end_ns: Option<i64>,
-    /// The 2D scanners' timing, which their ROS messages carry.
-    pub scan_timing: ScanTiming,
+    /// What the ROS messages carry that the simulator's do not (the 2D scanners' timing,
+    /// the camera's lens).
+    pub wire_details: WireDetails,
     /// A worker that takes no message for this long is cut off.
     pub stall: Duration,
     /// What the simulation cost per sensor, set once it has run to its end (before the end
@@ -386,7 +387,7 @@ impl Feed {
                 cost
             });
             for message in sim_rx {
-                let frame = Arc::new(Frames::encode(&message, &self.scan_timing));
+                let frame = Arc::new(Frames::encode(&message, &self.wire_details));
                 self.offer(
                     lanes
                         .iter_mut()
@@ -481,7 +482,7 @@ mod tests {
     fn every_message_round_trips_exactly() {
         let mut config = sim::SimConfig::default();
         config.sensors.gnss.profile = sim::config::GnssProfile::Rtk;
-        let timing = ScanTiming::new(&config);
+        let timing = WireDetails::new(&config);
         let sim = Simulation::new(&config, "s1", 7).expect("s1");
         let mut kinds = std::collections::BTreeSet::new();
         for message in sim
@@ -501,7 +502,7 @@ mod tests {
 
     #[test]
     fn a_stream_without_its_end_mark_is_an_error() {
-        let timing = ScanTiming::new(&sim::SimConfig::default());
+        let timing = WireDetails::new(&sim::SimConfig::default());
         let gt = Message::GroundTruth(sim::sensors::GroundTruth {
             stamp_ns: 5,
             world_from_base: nalgebra::Isometry3::identity(),
@@ -566,7 +567,7 @@ mod tests {
         let feed = Feed {
             end_ns: Some(2_000_000_000),
             stall: Duration::from_secs(30),
-            scan_timing: ScanTiming::new(&config),
+            wire_details: WireDetails::new(&config),
             cost: Arc::default(),
         };
         let readers = std::thread::spawn(move || {
@@ -646,7 +647,7 @@ mod tests {
             // 20 s of IMU and ground truth: more than a socket's buffer and a lane's queue.
             end_ns: Some(20_000_000_000),
             stall,
-            scan_timing: ScanTiming::new(&config),
+            wire_details: WireDetails::new(&config),
             cost: Arc::default(),
         };
         let pipe = || std::os::unix::net::UnixStream::pair().expect("socket pair");

@@ -679,7 +679,7 @@ fn run_shared(
             Ok(sim) => feed::Feed {
                 end_ns,
                 stall,
-                scan_timing: crate::dataset::ScanTiming::new(config),
+                wire_details: crate::dataset::WireDetails::new(config),
                 cost: feed_cost,
             }
             .run(&sim, subscribers),

@@ -157,7 +157,7 @@ fn results_mcap_of_a_lio_sam_run_holds_its_aligned_estimate_map_and_loops() {
         dir.path(),
         "s1",
         "lio-sam",
-        &[("a", LOOSE_LOOPS), ("b", LOOSE_LOOPS)],
+        (&[("a", LOOSE_LOOPS), ("b", LOOSE_LOOPS)], None),
         &extra,
     );
     let (folder, again) = (&folders[0], &folders[1]);

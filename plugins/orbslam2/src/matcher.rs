@@ -436,6 +436,8 @@ pub(crate) mod tests {
             },
             width: 640.0,
             height: 480.0,
+            lens: None,
+            bounds: [0.0, 640.0, 0.0, 480.0],
             close_depth_m: 3.2,
             min_depth_m: 0.5,
             max_depth_m: 8.0,

@@ -245,6 +245,7 @@ impl SlamSystem for OrbSlam2 {
         let cfg = Config::from_toml(config_toml).map_err(PluginError::new)?;
         let spec = rig.require(&cfg.camera, SensorKind::Rgbd)?;
         let pinhole = spec.pinhole()?;
+        let lens = spec.lens()?;
         let extractor = OrbExtractor::new(cfg.orb)
             .map_err(|e| PluginError::new(format!("ORB extractor: {e}")))?;
         let camera = Camera {
@@ -257,6 +258,8 @@ impl SlamSystem for OrbSlam2 {
             },
             width: pinhole.width,
             height: pinhole.height,
+            bounds: Camera::image_bounds(&pinhole, lens.as_ref()),
+            lens,
             close_depth_m: cfg.close_depth_m(),
             min_depth_m: cfg.min_depth_m,
             max_depth_m: cfg.max_depth_m,

@@ -52,8 +52,14 @@ DEFAULTS = {
 }
 
 
-def settings_yaml(p, width, height, intrinsics, fps):
+def settings_yaml(p, width, height, intrinsics, fps, lens=(0.0, 0.0, 0.0, 0.0, 0.0)):
+    """ORB-SLAM3's settings; `lens` the rig camera's plumb_bob [k1, k2, p1, p2, k3] (zero: a
+    rectified image), which ORB-SLAM3 undistorts keypoints with."""
     fx, fy, cx, cy = intrinsics
+    k1, k2, p1, p2, k3 = (float(v) for v in lens)
+    # k3 only for a lens: ORB-SLAM3 reads a fifth coefficient where there is one, and a
+    # rectified image's settings stay those of four zeros.
+    k3_line = f"Camera1.k3: {k3!r}\n" if any((k1, k2, p1, p2, k3)) else ""
     return f"""%YAML:1.0
 File.version: "1.0"
 Camera.type: "PinHole"
@@ -61,11 +67,11 @@ Camera1.fx: {fx!r}
 Camera1.fy: {fy!r}
 Camera1.cx: {cx!r}
 Camera1.cy: {cy!r}
-Camera1.k1: 0.0
-Camera1.k2: 0.0
-Camera1.p1: 0.0
-Camera1.p2: 0.0
-Camera.width: {width}
+Camera1.k1: {k1!r}
+Camera1.k2: {k2!r}
+Camera1.p1: {p1!r}
+Camera1.p2: {p2!r}
+{k3_line}Camera.width: {width}
 Camera.height: {height}
 Camera.fps: {int(round(fps))}
 Camera.RGB: 1
@@ -127,6 +133,9 @@ class OrbSlam3:
             )
         camera = next(s for s in rig["sensors"] if s["kind"] == "rgbd")
         self.fps = camera["rate_hz"]
+        # The lens of a raw image (absent: rectified), as the rig's camera intrinsics give it.
+        figures = camera.get("intrinsics", {})
+        self.lens = [figures.get(k, 0.0) for k in ("k1", "k2", "p1", "p2", "k3")]
         self.base_from_camera = mounting(camera)
         self.base_pose = BaseFrame(camera)
         self.imu = next((s for s in rig["sensors"] if s["kind"] == "imu"), None)
@@ -142,7 +151,11 @@ class OrbSlam3:
     def start(self, frame):
         path = os.path.join(self.folder, "settings.yaml")
         with open(path, "w") as f:
-            f.write(settings_yaml(self.params, frame.width, frame.height, frame.intrinsics, self.fps))
+            f.write(
+                settings_yaml(
+                    self.params, frame.width, frame.height, frame.intrinsics, self.fps, self.lens
+                )
+            )
             if self.params["inertial"]:
                 f.write(imu_yaml(self.imu, np.linalg.inv(mounting(self.imu)) @ self.base_from_camera))
         sensor = pyorbslam3.Sensor.IMU_RGBD if self.params["inertial"] else pyorbslam3.Sensor.RGBD

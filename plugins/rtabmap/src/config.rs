@@ -47,6 +47,9 @@ pub struct Config {
     /// `[Optimizer]`, keys by RTAB-Map's names).
     #[serde(rename = "Optimizer")]
     pub optimizer: OptimizerConfig,
+    /// RTAB-Map's `Rtabmap/` parameters that this plugin takes (the table `[Rtabmap]`).
+    #[serde(rename = "Rtabmap")]
+    pub rtabmap: RtabmapConfig,
     /// Optional: a CSV file to write every graph update's size and time to
     /// (`poses,full,seconds`); a relative path lands in the run's folder.
     pub profile_csv: Option<std::path::PathBuf>,
@@ -83,6 +86,7 @@ impl Default for Config {
                 ..BackendConfig::default()
             },
             optimizer: OptimizerConfig::default(),
+            rtabmap: RtabmapConfig::default(),
             profile_csv: None,
             locations_csv: None,
         }
@@ -369,6 +373,26 @@ pub struct OptimizerConfig {
     /// asked for and fixes that arrive all the same are ignored.
     #[serde(rename = "PriorsIgnored")]
     pub priors_ignored: bool,
+}
+
+/// RTAB-Map's `Rtabmap/` group, as far as this plugin goes.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RtabmapConfig {
+    /// `Rtabmap/ImagesAlreadyRectified` (RTAB-Map's default `true`): the images are taken
+    /// as rectified, whatever lens the camera reports. `false`: a camera with a lens (the
+    /// rig's `k1`...`k3`) has each frame rectified first, colour bilinearly and depth from
+    /// the nearest raw pixel (RTAB-Map's `CameraModel::rectifyImage`/`rectifyDepth`).
+    #[serde(rename = "ImagesAlreadyRectified")]
+    pub images_already_rectified: bool,
+}
+
+impl Default for RtabmapConfig {
+    fn default() -> Self {
+        Self {
+            images_already_rectified: true,
+        }
+    }
 }
 
 impl Default for OptimizerConfig {

@@ -35,6 +35,7 @@ pub mod matching;
 pub mod memory;
 pub mod pnp;
 pub mod proximity;
+pub mod rectify;
 pub mod scan_odometry;
 mod system;
 pub mod visual_odometry;

@@ -102,9 +102,15 @@ impl Effects<'_> {
         for c in linear.as_flattened_mut() {
             *c = c.max(0.0).sqrt() * 255.0;
         }
+        self.noise_and_quantize_row(first, linear, out);
+    }
+
+    /// The second half of [`Self::colour_row`]: a row of pixels `first..` already encoded
+    /// (0-255 as floats) gets its noise and becomes bytes. `encoded` is overwritten.
+    pub fn noise_and_quantize_row(&self, first: usize, encoded: &mut [[f32; 3]], out: &mut [u8]) {
         if !self.rgb_noise.is_empty() {
             let noise = &self.rgb_noise[..2047];
-            for (i, c) in (first..).zip(linear.iter_mut()) {
+            for (i, c) in (first..).zip(encoded.iter_mut()) {
                 let bits =
                     splitmix64(self.seed ^ (2 * i as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
                 for (ch, c) in c.iter_mut().enumerate() {
@@ -114,7 +120,7 @@ impl Effects<'_> {
                 }
             }
         }
-        for (out, &c) in out.iter_mut().zip(linear.as_flattened()) {
+        for (out, &c) in out.iter_mut().zip(encoded.as_flattened()) {
             // In [0.5, 255.5]: the conversion through i32 is exact and cheaper.
             *out = ((c.clamp(0.0, 255.0) + 0.5) as i32) as u8;
         }

@@ -74,6 +74,7 @@
 
 mod chunks;
 mod depth_noise;
+mod distortion;
 mod ground;
 mod image;
 mod intrinsics;
@@ -90,6 +91,7 @@ use rand::Rng;
 use rayon::prelude::*;
 
 pub use depth_noise::axial_sigma_m;
+pub use distortion::{Distortion, Remap};
 pub use image::{RgbdImage, save_depth_png, save_rgb_png, turbo};
 pub use intrinsics::{Intrinsics, camera_from_optical};
 
@@ -150,6 +152,9 @@ pub struct RgbdCamera {
     /// Leave out what a pass would only discard (`Pass::cull_beyond`); off only in the test
     /// that shows it changes nothing.
     culling: bool,
+    /// A lens that is not a pinhole (`distortion`): the pinhole canvas rendered and where
+    /// each raw pixel takes it from.
+    remap: Option<Remap>,
 }
 
 impl RgbdCamera {
@@ -179,6 +184,10 @@ impl RgbdCamera {
                 Background::Rgb(c) => Some(c.map(|x| (x * x) as f32)),
             },
             culling: true,
+            remap: Distortion::new(cfg.distortion).map(|d| {
+                Remap::new(&Intrinsics::from_config(cfg), &d)
+                    .expect("sensors.camera.distortion is checked when the world is read")
+            }),
         }
     }
 
@@ -199,11 +208,10 @@ impl RgbdCamera {
     /// 64-bit seed per frame, expanded per pixel by a counter-based hash).
     pub fn render(&self, world_from_base: &Isometry3<f64>, rng: &mut SimRng) -> RgbdImage {
         let world_from_optical = world_from_base * self.base_from_camera_optical;
-        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
         let seed: u64 = rng.random();
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let effects = depth_noise::Effects {
-            width: w,
+            width: self.intrinsics.width,
             min_depth_m: self.cfg.min_depth_m as f32,
             max_depth_m: self.cfg.max_depth_m as f32,
             depth_noise: noisy,
@@ -215,6 +223,59 @@ impl RgbdCamera {
             rgb_noise: if noisy { &self.rgb_noise } else { &[] },
             seed,
         };
+        let Some(remap) = &self.remap else {
+            let (rgb, depth_m) =
+                self.render_pinhole(&world_from_optical, &self.intrinsics, &effects);
+            return self.image(rgb, depth_m);
+        };
+        // A lens: the pinhole canvas without colour noise, resampled to the raw image, whose
+        // pixels then get theirs (as a sensor's pixels do, behind the lens).
+        let k = remap.canvas;
+        let canvas_effects = depth_noise::Effects {
+            width: k.width,
+            rgb_noise: &[],
+            ..effects
+        };
+        let (canvas_rgb, canvas_depth) =
+            self.render_pinhole(&world_from_optical, &k, &canvas_effects);
+        let w = self.intrinsics.width;
+        let mut rgb = vec![0u8; 3 * w * self.intrinsics.height];
+        rgb.par_chunks_mut(3 * w * BAND_ROWS)
+            .enumerate()
+            .for_each_init(
+                || vec![[0.0f32; 3]; w],
+                |row, (band, out)| {
+                    for (r, out) in out.chunks_exact_mut(3 * w).enumerate() {
+                        let v = band * BAND_ROWS + r;
+                        remap.colour_row(&canvas_rgb, v, row);
+                        effects.noise_and_quantize_row(v * w, row, out);
+                    }
+                },
+            );
+        self.image(rgb, remap.depth(&canvas_depth))
+    }
+
+    /// A frame of the configured image (its intrinsics the frame's camera matrix).
+    fn image(&self, rgb: Vec<u8>, depth_m: Vec<f32>) -> RgbdImage {
+        let k = self.intrinsics;
+        RgbdImage {
+            width: k.width,
+            height: k.height,
+            rgb,
+            depth_m,
+            intrinsics: [k.fx, k.fy, k.cx, k.cy],
+        }
+    }
+
+    /// A pinhole frame through `k` (the configured image's, or a lens's canvas): colour and
+    /// depth with every effect of `effects`.
+    fn render_pinhole(
+        &self,
+        world_from_optical: &Isometry3<f64>,
+        k: &Intrinsics,
+        effects: &depth_noise::Effects<'_>,
+    ) -> (Vec<u8>, Vec<f32>) {
+        let (w, h) = (k.width, k.height);
         let far = self.cfg.colour_far_clip_m.map(|f| f as f32);
         let colour = Pass {
             pattern: self.pattern,
@@ -224,15 +285,7 @@ impl RgbdCamera {
             colour: true,
         };
         let (rgb, mut depth, mut cos_incidence) =
-            self.pass(&world_from_optical, &self.intrinsics, &colour, &effects);
-        let k = self.intrinsics;
-        let image = |depth_m| RgbdImage {
-            width: w,
-            height: h,
-            rgb,
-            depth_m,
-            intrinsics: [k.fx, k.fy, k.cx, k.cy],
-        };
+            self.pass(world_from_optical, k, &colour, effects);
         if let Some(kd) = &self.depth_intrinsics {
             // The depth camera's own pass. With one sample a pixel's depth is its centre's
             // surface, so one wholly beyond the range (and beyond what edge dropout compares
@@ -252,10 +305,10 @@ impl RgbdCamera {
                     let [ox, oy, oz] = self.cfg.depth_offset_m;
                     let world_from_depth_optical =
                         world_from_optical * nalgebra::Translation3::new(ox, oy, oz);
-                    let (_, d, c) = self.pass(&world_from_depth_optical, kd, &depth_pass, &effects);
+                    let (_, d, c) = self.pass(&world_from_depth_optical, kd, &depth_pass, effects);
                     let own = depth_noise::Effects {
                         width: kd.width,
-                        ..effects
+                        ..*effects
                     };
                     let mut native = vec![0.0f32; kd.width * kd.height];
                     native
@@ -264,22 +317,17 @@ impl RgbdCamera {
                         .for_each(|(band, out)| {
                             own.depth_band(band * BAND_ROWS * kd.width, &d, &c, out);
                         });
-                    return image(register_depth(
-                        &native,
-                        kd,
-                        self.cfg.depth_offset_m,
-                        &self.intrinsics,
-                    ));
+                    return (rgb, register_depth(&native, kd, self.cfg.depth_offset_m, k));
                 }
                 DepthRegistration::Stretched => {
                     // The depth camera's own image, handed over pixel for pixel.
-                    let (_, d, c) = self.pass(&world_from_optical, kd, &depth_pass, &effects);
+                    let (_, d, c) = self.pass(world_from_optical, kd, &depth_pass, effects);
                     (depth, cos_incidence) = (d, c);
                 }
                 DepthRegistration::Registered => {
                     // The same centre: registration keeps the rays the depth camera sees,
                     // the columns and rows within its view (row by row: no division per pixel).
-                    let c = self.intrinsics;
+                    let c = *k;
                     let (tx, ty) = (
                         (0.5 * kd.width as f64) / kd.fx,
                         (0.5 * kd.height as f64) / kd.fy,
@@ -310,7 +358,7 @@ impl RgbdCamera {
             .for_each(|(band, out)| {
                 effects.depth_band(band * BAND_ROWS * w, &depth, &cos_incidence, out);
             });
-        image(depth_m)
+        (rgb, depth_m)
     }
 
     /// A depth camera with a centre or an image of its own (`depth_offset_m`,
@@ -725,6 +773,77 @@ mod tests {
         assert!(
             (near as f64) < 0.7 * all as f64,
             "{near} of {all} chunks within 6 m"
+        );
+    }
+
+    /// A lens's raw frame puts each surface where the lens model says: a raw pixel's depth,
+    /// back-projected along its undistorted ray and projected through the pinhole, lands on
+    /// the same surface in the pinhole frame from the same pose; along the pixel's own
+    /// (distorted) ray, as a system that ignores the lens would read it, far less often.
+    #[test]
+    fn a_lens_puts_each_surface_where_its_model_says() {
+        let cfg = SimConfig::default();
+        let sim = Simulation::new(&cfg, "s3", 7).expect("s3");
+        let world = World::from_config(&cfg);
+        let pinhole_cfg = CameraConfig {
+            noise: NoiseProfile::None,
+            ..cfg.sensors.camera.clone()
+        };
+        // Stronger than a Kinect v2's colour lens (k1 0.03-0.08), so that ignoring it shows.
+        let lens_cfg = CameraConfig {
+            distortion: [-0.25, 0.05, 0.001, -0.001, 0.0],
+            ..pinhole_cfg.clone()
+        };
+        let (pinhole, lens) = (
+            RgbdCamera::new(&pinhole_cfg, &world),
+            RgbdCamera::new(&lens_cfg, &world),
+        );
+        let d = Distortion::new(lens_cfg.distortion).unwrap();
+        let k = pinhole.intrinsics();
+        assert_eq!(
+            lens.intrinsics(),
+            k,
+            "the raw frame keeps the configured camera matrix"
+        );
+        let (mut lens_hits, mut naive_hits, mut n) = (0usize, 0usize, 0usize);
+        for t_s in [30, 60] {
+            let pose = sim.trajectory.pose(t_s * 1_000_000_000);
+            let raw = lens.render(&pose, &mut crate::rng::stream(1, "frame"));
+            let pin = pinhole.render(&pose, &mut crate::rng::stream(1, "frame"));
+            assert_eq!((raw.width, raw.height), (k.width, k.height));
+            // Whether the point of ray (x, y) at depth z is the pinhole frame's surface there.
+            let on_surface = |x: f64, y: f64, z: f64| {
+                let (u, v) = ((k.fx * x + k.cx).round(), (k.fy * y + k.cy).round());
+                if u < 0.0 || v < 0.0 || u >= k.width as f64 || v >= k.height as f64 {
+                    return None;
+                }
+                let zp = f64::from(pin.depth_m[v as usize * k.width + u as usize]);
+                Some(zp > 0.0 && (zp - z).abs() < 0.02 * z)
+            };
+            for v in (0..k.height).step_by(3) {
+                for u in (0..k.width).step_by(3) {
+                    let z = f64::from(raw.depth_m[v * k.width + u]);
+                    let (xd, yd) = ((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy);
+                    let (x, y) = d.undistort(xd, yd).unwrap();
+                    // Only where the lens moves the pixel by 3 pixels or more.
+                    if z <= 0.0 || ((x - xd) * k.fx).hypot((y - yd) * k.fy) < 3.0 {
+                        continue;
+                    }
+                    let (Some(a), Some(b)) = (on_surface(x, y, z), on_surface(xd, yd, z)) else {
+                        continue;
+                    };
+                    n += 1;
+                    lens_hits += usize::from(a);
+                    naive_hits += usize::from(b);
+                }
+            }
+        }
+        let (lens_rate, naive_rate) = (lens_hits as f64 / n as f64, naive_hits as f64 / n as f64);
+        assert!(n > 2000, "only {n} pixels the lens moves by 3 px or more");
+        assert!(
+            lens_rate > 0.9 && naive_rate < lens_rate - 0.15,
+            "on the pinhole frame's surface: {lens_rate:.3} along the undistorted rays, \
+             {naive_rate:.3} along the raw pixels' own (n = {n})"
         );
     }
 }

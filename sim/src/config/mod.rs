@@ -291,6 +291,19 @@ impl SimConfig {
         if let Some(f) = c.colour_far_clip_m {
             positive("sensors.camera.colour_far_clip_m", f)?;
         }
+        if let Some(d) = crate::camera::Distortion::new(c.distortion) {
+            for (k, v) in c.distortion.iter().enumerate() {
+                in_range(&format!("sensors.camera.distortion[{k}]"), *v, -10.0, 10.0)?;
+            }
+            if c.depth_hfov_deg.is_some() && c.depth_registration != DepthRegistration::Registered {
+                return Err(
+                    "sensors.camera.distortion: a lens's raw image takes its depth registered to                      it: set depth_registration = \"registered\""
+                        .into(),
+                );
+            }
+            crate::camera::Remap::new(&crate::camera::Intrinsics::from_config(c), &d)
+                .map_err(|e| format!("sensors.camera.distortion = {:?}: {e}", c.distortion))?;
+        }
         if let Background::Rgb(rgb) = c.background {
             for (k, v) in rgb.iter().enumerate() {
                 in_range(&format!("sensors.camera.background[{k}]"), *v, 0.0, 1.0)?;
@@ -767,6 +780,39 @@ mod tests {
         assert!(
             e.to_string().contains("vineyard.plant_variation = 1.5"),
             "{e}"
+        );
+    }
+
+    /// A lens is named by its key when it folds, is not a number, or meets a depth image
+    /// that is not registered to it; a Kinect v2's calibrated lens is taken.
+    #[test]
+    fn a_lens_that_cannot_be_rendered_is_named() {
+        for (text, says) in [
+            (
+                "[sensors.camera]\nhfov_deg = 120.0\ndistortion = [-0.6, 0.0, 0.0, 0.0, 0.0]\n",
+                "sensors.camera.distortion = [-0.6, 0.0, 0.0, 0.0, 0.0]",
+            ),
+            (
+                "[sensors.camera]\ndistortion = [0.07, nan, 0.0, 0.0, 0.0]\n",
+                "sensors.camera.distortion[1] = NaN",
+            ),
+            (
+                "[sensors.camera]\ndepth_hfov_deg = 70.1\ndistortion = [0.07, -0.13, 0.0, 0.0, 0.06]\n",
+                "set depth_registration = \"registered\"",
+            ),
+        ] {
+            let e = SimConfig::from_toml_str(text, "w.toml").expect_err(text);
+            assert!(e.to_string().contains(says), "{text}: {e}");
+        }
+        let kinect = "[sensors.camera]\nhfov_deg = 84.1\n\
+                      distortion = [0.0717, -0.1355, 0.0016, 0.0024, 0.0595]\n";
+        let cfg = SimConfig::from_toml_str(kinect, "w.toml").expect("a Kinect v2's lens");
+        let text = toml::to_string(&cfg).expect("serialises");
+        assert!(text.contains("distortion = ["), "{text}");
+        let plain = toml::to_string(&SimConfig::default()).expect("serialises");
+        assert!(
+            !plain.contains("distortion"),
+            "a pinhole's world text is as before"
         );
     }
 

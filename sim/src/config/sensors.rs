@@ -326,6 +326,22 @@ pub struct CameraConfig {
     /// `<scene><background>0.7 0.7 0.7` in `vineyard_stage0_riseholme_vertical.world`,
     /// which has no sky).
     pub background: Background,
+    /// The colour lens's distortion, OpenCV's `plumb_bob` `[k1, k2, p1, p2, k3]` (Brown-Conrady:
+    /// radial `1 + k1 r² + k2 r⁴ + k3 r⁶` and tangential `p1`, `p2`, on normalized image
+    /// coordinates). Zero (the default): a rectified image, as a driver's `image_rect`
+    /// topic gives it. Non-zero: the raw image of such a lens, the frame's `[fx, fy, cx,
+    /// cy]` its camera matrix, the coefficients in the rig's camera intrinsics (`k1`...`k3`)
+    /// and in `camera_info`'s `d`; the registered depth is registered to the raw colour
+    /// image. A Kinect v2's colour camera, from the calibrations of eight units published
+    /// with iai_kinect2 (`kinect2_bridge/data/*/calib_color.yaml`, read): k1 0.027 to
+    /// 0.083, k2 -0.145 to -0.039, k3 0.001 to 0.070, |p1|, |p2| under 0.003; up to 3-5
+    /// pixels at a 640-pixel-wide image's corners.
+    #[serde(skip_serializing_if = "no_distortion")]
+    pub distortion: [f64; 5],
+}
+
+fn no_distortion(d: &[f64; 5]) -> bool {
+    *d == [0.0; 5]
 }
 
 /// The camera's background: the sky, or one colour.
@@ -389,6 +405,7 @@ impl Default for CameraConfig {
             colour_far_clip_m: None,
             clock_offset_ns: 0,
             background: Background::default(),
+            distortion: [0.0; 5],
         }
     }
 }

@@ -85,10 +85,14 @@ pub fn run_together(
     dir: &Path,
     scenario: &str,
     plugin: &str,
-    runs: &[(&str, &str)],
+    (runs, world): (&[(&str, &str)], Option<&Path>),
     extra: &[&str],
 ) -> Vec<PathBuf> {
     let mut bench = toml::Table::new();
+    if let Some(world) = world {
+        let world = world.to_str().expect("utf-8 path");
+        bench.insert("world".into(), world.into());
+    }
     bench.insert(
         "scenarios".into(),
         toml::Value::Array(vec![scenario.into()]),

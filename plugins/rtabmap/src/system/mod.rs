@@ -52,6 +52,8 @@ pub struct Rtabmap {
     base_r_imu: UnitQuaternion<f64>,
     /// The camera's `[fx, fy, cx, cy]`, from the rig.
     intrinsics: [f64; 4],
+    /// A lens's raw frames are rectified first (`Rtabmap/ImagesAlreadyRectified = false`).
+    rectifier: Option<crate::rectify::Rectifier>,
     odometry: Odometry,
     /// The newest scan of `cfg.scan`: its stamp and points in its frame.
     latest_scan: Option<(i64, Vec<Vector2<f64>>)>,
@@ -372,6 +374,20 @@ impl SlamSystem for Rtabmap {
         let pinhole = camera.pinhole()?;
         let intrinsics = pinhole.intrinsics();
         let size = (pinhole.width as usize, pinhole.height as usize);
+        let rectifier = match camera.lens()? {
+            Some(lens) if !cfg.rtabmap.images_already_rectified => {
+                Some(crate::rectify::Rectifier::new(&pinhole, &lens))
+            }
+            Some(lens) => {
+                eprintln!(
+                    "rtabmap: the camera reports a lens ({lens:?}) and \
+                     Rtabmap/ImagesAlreadyRectified = true (RTAB-Map's default): its raw \
+                     images are taken as rectified"
+                );
+                None
+            }
+            None => None,
+        };
         let base_from_camera = camera.base_from_sensor();
         let base_from_scan = scan.base_from_sensor();
         let base_r_imu = rig
@@ -412,6 +428,7 @@ impl SlamSystem for Rtabmap {
             base_from_scan,
             base_r_imu,
             intrinsics,
+            rectifier,
             odometry,
             latest_scan: None,
             graph,
@@ -496,11 +513,20 @@ impl SlamSystem for Rtabmap {
             return Ok(None);
         }
         let step = self.location_log.as_ref().map(|_| StepStart::now());
+        let rectified = self
+            .rectifier
+            .as_ref()
+            .map(|r| r.rectify(frame.rgb, frame.depth_m));
+        let (rgb, depth_m) = rectified
+            .as_ref()
+            .map_or((frame.rgb, frame.depth_m), |(rgb, depth)| {
+                (rgb.as_slice(), depth.as_slice())
+            });
         let image = Image {
             width: frame.width as usize,
             height: frame.height as usize,
-            rgb: frame.rgb,
-            depth_m: frame.depth_m,
+            rgb,
+            depth_m,
             intrinsics: frame.intrinsics,
         };
         let stamp = frame.stamp_ns;
