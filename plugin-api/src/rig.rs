@@ -89,6 +89,17 @@ pub struct Lens {
 }
 
 impl Lens {
+    /// Where the lens puts the normalized image point `(x, y)` (`X/Z`, `Y/Z`): `plumb_bob`'s
+    /// radial `1 + k1 r² + k2 r⁴ + k3 r⁶` and tangential `p1`, `p2` terms.
+    pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));
+        (
+            x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x),
+            y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y,
+        )
+    }
+
     /// The pixel `(u, v)` of a raw image of camera `k` moved to where a pinhole would have
     /// seen its ray: OpenCV's `undistortPoints` fixed-point iteration, `iterations` times
     /// (OpenCV 3's default is 5, which ORB-SLAM2 uses through it).
@@ -297,11 +308,7 @@ mod tests {
         let lens = spec.lens().unwrap().expect("a lens");
         let k = spec.pinhole().unwrap();
         // A pinhole pixel, moved by the lens (plumb_bob), and back.
-        let (x, y) = ((500.0 - k.cx) / k.fx, (350.0 - k.cy) / k.fy);
-        let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (lens.k1 + r2 * (lens.k2 + r2 * lens.k3));
-        let xd = x * radial + 2.0 * lens.p1 * x * y + lens.p2 * (r2 + 2.0 * x * x);
-        let yd = y * radial + lens.p1 * (r2 + 2.0 * y * y) + 2.0 * lens.p2 * x * y;
+        let (xd, yd) = lens.distort((500.0 - k.cx) / k.fx, (350.0 - k.cy) / k.fy);
         let raw = (k.fx * xd + k.cx, k.fy * yd + k.cy);
         assert!(
             (raw.0 - 600.0).hypot(raw.1 - 40.0) > 1.0,

@@ -21,11 +21,7 @@ impl Rectifier {
         let mut src = Vec::with_capacity(w * h);
         for v in 0..h {
             for u in 0..w {
-                let (x, y) = ((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy);
-                let r2 = x * x + y * y;
-                let radial = 1.0 + r2 * (lens.k1 + r2 * (lens.k2 + r2 * lens.k3));
-                let xd = x * radial + 2.0 * lens.p1 * x * y + lens.p2 * (r2 + 2.0 * x * x);
-                let yd = y * radial + lens.p1 * (r2 + 2.0 * y * y) + 2.0 * lens.p2 * x * y;
+                let (xd, yd) = lens.distort((u as f64 - k.cx) / k.fx, (v as f64 - k.cy) / k.fy);
                 let (su, sv) = (k.fx * xd + k.cx, k.fy * yd + k.cy);
                 let inside = su >= 0.0 && sv >= 0.0 && su <= (w - 1) as f64 && sv <= (h - 1) as f64;
                 src.push(inside.then_some([su as f32, sv as f32]));
@@ -87,13 +83,7 @@ mod tests {
         };
         // The pinhole pixel (280, 200) seen through the lens.
         let (u, v) = (280.0f64, 200.0f64);
-        let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
-        let r2 = x * x + y * y;
-        let radial = 1.0 + r2 * (lens.k1 + r2 * lens.k2);
-        let (xd, yd) = (
-            x * radial + 2.0 * lens.p1 * x * y + lens.p2 * (r2 + 2.0 * x * x),
-            y * radial + lens.p1 * (r2 + 2.0 * y * y) + 2.0 * lens.p2 * x * y,
-        );
+        let (xd, yd) = lens.distort((u - k.cx) / k.fx, (v - k.cy) / k.fy);
         let (ru, rv) = (
             (k.fx * xd + k.cx).round() as usize,
             (k.fy * yd + k.cy).round() as usize,
