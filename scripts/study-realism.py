@@ -6,8 +6,9 @@ timing.json of each run of configs/study/realism/):
 - the ladder: every system on S3 under `ideal`, `paper`, `typical` and `field`, ATE RMSE
   mean ± sample std over the seeds, drift per 100 m, false loops and wrong joins of the
   final map, dropped messages; the ranking of the systems on each rung;
-- the factors: each factor family of `field` switched on alone over `typical` (one seed),
-  ATE RMSE and its change, and which factor costs each system most.
+- the factors: each factor family of `field` switched on alone over `typical` (the seeds
+  run), ATE RMSE and its change against `typical` under the same seed, and which factor
+  costs each system most.
 
     python3 scripts/study-realism.py [--kept DIR] [--out FILE] [--figure FILE]
     python3 scripts/study-realism.py --resume configs/study/realism/X.toml --kept DIR/<world>
@@ -192,34 +193,52 @@ def tables(runs, figure):
             out.append(f"![ATE RMSE per rung]({Path(figure).stem}-{world}.svg)\n")
 
         factor_rows = [r for r in wrows if r["variant"] is not None
-                       or (r["rung"] == "typical" and r["seed"] == 0)]
+                       or r["rung"] == "typical"]
         variants = sorted({r["variant"] for r in factor_rows if r["variant"]})
         if variants:
-            out.append(f"## {world}: each factor alone over `typical` (S3, seed 0)\n")
-            out.append("ATE RMSE (m), and its change against `typical`:\n")
+            seeds = sorted({r["seed"] for r in factor_rows if r["variant"]})
+            named = ", ".join(str(x) for x in seeds)
+            out.append(f"## {world}: each factor alone over `typical` (S3, seeds {named})\n")
+            out.append(
+                "ATE RMSE (m), the median over seeds, and the change each seed's run made "
+                "against `typical` under the same seed: the median change, then each seed's in seed order. The factor "
+                "that costs a system most is the one with the largest median change; a "
+                "factor whose changes differ in sign between seeds is within the seeds' "
+                "spread.\n")
             out.append("| system | typical | " + " | ".join(variants) + " | costs most |")
             out.append("|---|---:|" + "---:|" * len(variants) + "---|")
             for s in systems:
-                base = [r for r in factor_rows if r["system"] == s and r["variant"] is None
-                        and r["rung"] == "typical" and r["seed"] == 0]
-                b = base[0]["ate"] if base and base[0]["ok"] else None
+                base = {r["seed"]: r for r in factor_rows if r["system"] == s
+                        and r["variant"] is None and r["rung"] == "typical"}
+                used = [base[x] for x in seeds if x in base]
+                base_ok = [r["ate"] for r in used if r["ok"]]
                 cells, worst = [], None
                 for v in variants:
-                    here = [r for r in factor_rows if r["system"] == s and r["variant"] == v]
+                    here = sorted((r for r in factor_rows if r["system"] == s
+                                   and r["variant"] == v), key=lambda r: r["seed"])
                     if not here:
                         cells.append("–")
-                    elif not here[0]["ok"]:
+                        continue
+                    ok = [r for r in here if r["ok"]]
+                    bad = len(here) - len(ok)
+                    tail = f", {bad} failed" if bad else ""
+                    if not ok:
                         cells.append(f"failed ({here[0]['status']})")
-                    elif b is None:
-                        cells.append(f"{here[0]['ate']:.3f}")
-                    else:
-                        a = here[0]["ate"]
-                        cells.append(f"{a:.3f} ({a - b:+.3f})")
-                        if worst is None or a - b > worst[0]:
-                            worst = (a - b, v)
+                        continue
+                    ate = statistics.median(r["ate"] for r in ok)
+                    pairs = [r["ate"] - base[r["seed"]]["ate"] for r in ok
+                             if r["seed"] in base and base[r["seed"]]["ok"]]
+                    if not pairs:
+                        cells.append(f"{ate:.3f}{tail}")
+                        continue
+                    d = statistics.median(pairs)
+                    each = "; " + ", ".join(f"{x:+.3f}" for x in pairs) if len(pairs) > 1 else ""
+                    cells.append(f"{ate:.3f} ({d:+.3f}{each}){tail}")
+                    if worst is None or d > worst[0]:
+                        worst = (d, v)
                 most = f"{worst[1]} ({worst[0]:+.3f} m)" if worst and worst[0] > 0 else "–"
-                out.append(f"| {s} | {b:.3f} | " if b is not None else f"| {s} | – | ")
-                out[-1] += " | ".join(cells) + f" | {most} |"
+                b = f"{statistics.median(base_ok):.3f}" if base_ok else "–"
+                out.append(f"| {s} | {b} | " + " | ".join(cells) + f" | {most} |")
             out.append("")
     return "\n".join(out)
 
