@@ -15,19 +15,7 @@ import math
 import statistics
 from pathlib import Path
 
-from studylib import toml_text
-
-Z = 1.959963984540054
-
-
-def wilson(k, n):
-    """The 95 % Wilson score interval of k of n (exactly 0 and 1 at k = 0 and k = n)."""
-    p = k / n
-    d = 1 + Z * Z / n
-    centre = (p + Z * Z / (2 * n)) / d
-    half = Z / d * math.sqrt(p * (1 - p) / n + Z * Z / (4 * n * n))
-    return (0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half))
-
+from studylib import toml_text, wilson
 
 def fisher_two_sided(k1, n1, k2, n2):
     """Fisher's exact test of k1 of n1 against k2 of n2 (Fisher 1935): the probability,

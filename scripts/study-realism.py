@@ -6,6 +6,8 @@ timing.json of each run of configs/study/realism/):
 - the ladder: every system on S3 under `ideal`, `paper`, `typical` and `field`, ATE RMSE
   mean ± sample std over the seeds, drift per 100 m, false loops and wrong joins of the
   final map, dropped messages; the ranking of the systems on each rung;
+- the rates: where a system has run over more seeds than the ladder's three (rates-paper-
+  world.toml), how often it broke, k of n with a Wilson interval;
 - the factors: each factor family of `field` switched on alone over `typical` (the seeds
   run), ATE RMSE and its change against `typical` under the same seed, and which factor
   costs each system most.
@@ -25,9 +27,15 @@ import math
 import statistics
 from pathlib import Path
 
-from studylib import load, resume_files
+from studylib import load, resume_files, wilson
 
 RUNGS = ["ideal", "paper", "typical", "field"]
+# The ladder's seeds: every rung and system has these (rates-paper-world.toml adds seeds to
+# some systems on some rungs, which the rates section counts).
+LADDER_SEEDS = {0, 1, 2}
+# A run's ATE RMSE above this counts as broken in the rates section (S3 is about 230 m long:
+# 0.5 m is ten times what the lidar systems score when they hold).
+BROKEN_M = 0.5
 # Published S3 figures as context, not as a target: Hroob et al. 2021, Table 2 (ATE, m).
 PAPER_S3 = {"lio-sam": 0.40, "staticmapping": 1.51, "orbslam2": 5.22, "rtabmap": 0.07}
 
@@ -132,12 +140,52 @@ def svg_ladder(rows, systems, path):
     Path(path).write_text("\n".join(out) + "\n")
 
 
+def rates(rows, systems, world):
+    """The rungs where a system has runs beyond the ladder's seeds: how often it broke (a
+    false loop accepted or a wrong join of the final map; an ATE RMSE over BROKEN_M; not
+    ended ok), k of n with the 95 % Wilson interval."""
+    cells = []
+    for s in systems:
+        for rung in RUNGS:
+            here = [r for r in rows if r["system"] == s and r["rung"] == rung]
+            if len({r["seed"] for r in here} - LADDER_SEEDS) == 0:
+                continue
+            ok = [r for r in here if r["ok"]]
+            joined = [r for r in ok if (r["false_loops"] or 0) + (r["wrong_joins"] or 0) > 0]
+            far = [r for r in ok if r["ate"] > BROKEN_M]
+            cells.append((s, rung, here, ok, joined, far))
+    if not cells:
+        return []
+
+    def rate(k, n):
+        lo, hi = wilson(k, n)
+        return f"{k} of {n} [{lo:.2f}, {hi:.2f}]"
+
+    seeds = sorted({r["seed"] for c in cells for r in c[2]})
+    out = [f"## {world}: how often a system breaks (S3, seeds {seeds[0]}–{seeds[-1]})\n",
+           "Runs with a false loop accepted or a wrong join of the final map, and runs whose "
+           f"ATE RMSE is over {BROKEN_M} m, k of n with the 95 % Wilson interval; the ATE "
+           "RMSE's median and range over the runs that ended ok:\n",
+           "| system | rung | false loop or wrong join | ATE over "
+           f"{BROKEN_M} m | not ok | ATE RMSE median [min, max] (m) |",
+           "|---|---|---|---|---:|---|"]
+    for s, rung, here, ok, joined, far in cells:
+        ates = [r["ate"] for r in ok]
+        spread = (f"{statistics.median(ates):.3f} [{min(ates):.3f}, {max(ates):.3f}]"
+                  if ates else "–")
+        out.append(f"| {s} | {rung} | {rate(len(joined), len(ok)) if ok else '–'} | "
+                   f"{rate(len(far), len(ok)) if ok else '–'} | {len(here) - len(ok)} | "
+                   f"{spread} |")
+    out.append("")
+    return out
+
+
 def tables(runs, figure):
     rows = [row_of(r) for r in runs]
     out = []
     for world in sorted({r["world"] for r in rows}):
         wrows = [r for r in rows if r["world"] == world]
-        ladder = [r for r in wrows if r["variant"] is None]
+        ladder = [r for r in wrows if r["variant"] is None and r["seed"] in LADDER_SEEDS]
         systems = sorted({r["system"] for r in wrows})
         out.append(f"## {world}: the ladder (S3, mean ± sample std over seeds)\n")
         out.append("ATE RMSE (m), in brackets each seed's (seeds in order); runs that did not "
@@ -192,6 +240,7 @@ def tables(runs, figure):
                 f"{Path(figure).stem}-{world}.svg"))
             out.append(f"![ATE RMSE per rung]({Path(figure).stem}-{world}.svg)\n")
 
+        out.extend(rates([r for r in wrows if r["variant"] is None], systems, world))
         factor_rows = [r for r in wrows if r["variant"] is not None
                        or r["rung"] == "typical"]
         variants = sorted({r["variant"] for r in factor_rows if r["variant"]})

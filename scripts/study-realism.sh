@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Issue 45's sensitivity study (docs/realism/): every system on S3 of the paper's world under
-# each rung of the realism ladder (ideal, paper, typical, field; three seeds) and with each
-# factor of `field` alone over `typical` (one seed), the sweeps of configs/study/realism/.
+# each rung of the realism ladder (ideal, paper, typical, field; three seeds), with each
+# factor of `field` alone over `typical` (three seeds; ORB-SLAM3 one), and the cheap systems'
+# breaks as a rate over ten seeds, the sweeps of configs/study/realism/.
 # Each (rung or factor, seed) is recorded once and replayed to every system. Hours on two
 # cores; spread it over sessions:
 #   bash scripts/study-realism.sh [SWEEP...]   run (or resume) the named sweeps, all by default
@@ -18,8 +19,9 @@ results=results/realism
 kept=docs/realism/runs
 # VINEBENCH: another build's vinebench (its plugins beside it), used as it is, not rebuilt.
 vb=${VINEBENCH:-target/release/vinebench}
-all=(ladder-paper-world factors-paper-world ladder-paper-world-camera factors-paper-world-camera
-     ladder-paper-world-orbslam3 factors-paper-world-orbslam3 transport-paper-world)
+all=(ladder-paper-world factors-paper-world rates-paper-world ladder-paper-world-camera
+     factors-paper-world-camera ladder-paper-world-orbslam3 factors-paper-world-orbslam3
+     transport-paper-world)
 
 source scripts/studylib.sh
 save() { keep_sweep_runs "$results" "$kept"; }

@@ -1,9 +1,23 @@
 """What the study scripts (study-rates.py, study-realism.py, study-gnss.py) share."""
 
 import json
+import math
 import re
 import tomllib
 from pathlib import Path
+
+
+# The normal quantile of a two-sided 95 % interval.
+Z = 1.959963984540054
+
+
+def wilson(k, n):
+    """The 95 % Wilson score interval of k of n (exactly 0 and 1 at k = 0 and k = n)."""
+    p = k / n
+    d = 1 + Z * Z / n
+    centre = (p + Z * Z / (2 * n)) / d
+    half = Z / d * math.sqrt(p * (1 - p) / n + Z * Z / (4 * n * n))
+    return (0.0 if k == 0 else max(0.0, centre - half), 1.0 if k == n else min(1.0, centre + half))
 
 
 def toml_text(v):

@@ -13,14 +13,14 @@ study_realism = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(study_realism)
 
 
-def run(label, seed, ate, variant=None, status="ok"):
+def run(label, seed, ate, variant=None, status="ok", false_loops=0, rung="typical"):
     """A kept run as studylib.load gives it: the ladder's `typical` rung when `variant` is
     None (as a factor sweep's `typical` variant is the same run), else a factor over it."""
-    point = [["profile", '"typical"']]
+    point = [["profile", json.dumps(rung)]]
     if variant is not None:
         point.append(["variant", json.dumps(variant)])
     metrics = None if status != "ok" else {
-        "ape": {"rmse": ate}, "loops": {"accepted_false": 0},
+        "ape": {"rmse": ate}, "loops": {"accepted_false": false_loops},
         "drift": {"translation_percent": 1.0, "rotation_deg_per_100m": 1.0}}
     return {"world": "paper-world", "timing": {},
             "cell": {"label": label, "seed": seed, "point": point, "status": status},
@@ -62,6 +62,29 @@ class FactorTable(unittest.TestCase):
         text = study_realism.tables(runs, None)
         self.assertEqual(factor_row(text, "a")[-1], "–")
         self.assertEqual(factor_row(text, "b")[2:], ["–", "–"])
+
+
+class Rates(unittest.TestCase):
+    def test_breaks_are_counted_over_every_seed_and_the_ladder_keeps_its_three(self):
+        # Ten seeds under `typical`: seed 0 with false loops and a metre and a half off, seed
+        # 4 with a false loop that cost nothing, seed 7 failed; `ideal` has the ladder's three.
+        runs = [run("a", x, 0.03, false_loops=1 if x == 4 else 0) for x in range(1, 10)
+                if x != 7]
+        runs += [run("a", 0, 1.6, false_loops=9), run("a", 7, None, status="failed")]
+        runs += [run("a", x, 0.02, rung="ideal") for x in range(3)]
+        text = study_realism.tables(runs, None)
+        rates = text[text.index("how often a system breaks"):]
+        rows = [l for l in rates.splitlines() if l.startswith("| a |")]
+        self.assertEqual(len(rows), 1, "only the rung with seeds beyond the ladder's")
+        cells = [c.strip() for c in rows[0].strip("|").split("|")]
+        self.assertEqual(cells[1], "typical")
+        self.assertEqual(cells[2], "2 of 9 [0.06, 0.55]")
+        self.assertEqual(cells[3], "1 of 9 [0.02, 0.43]")
+        self.assertEqual(cells[4], "1")
+        self.assertEqual(cells[5], "0.030 [0.030, 1.600]")
+        # The ladder's `typical` cell: seeds 0-2 only, seed 0's 1.6 m among them.
+        ladder = next(l for l in text.splitlines() if l.startswith("| a |"))
+        self.assertIn("(1.600, 0.030, 0.030)", ladder)
 
 
 if __name__ == "__main__":
