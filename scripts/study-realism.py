@@ -259,7 +259,9 @@ def tables(runs, figure):
             for s in systems:
                 base = {r["seed"]: r for r in factor_rows if r["system"] == s
                         and r["variant"] is None and r["rung"] == "typical"}
-                used = [base[x] for x in seeds if x in base]
+                # `typical` over the seeds this system's factors ran at.
+                own = {r["seed"] for r in factor_rows if r["system"] == s and r["variant"]}
+                used = [base[x] for x in sorted(own) if x in base]
                 base_ok = [r["ate"] for r in used if r["ok"]]
                 cells, worst = [], None
                 for v in variants:

@@ -64,6 +64,18 @@ class FactorTable(unittest.TestCase):
         self.assertEqual(factor_row(text, "b")[2:], ["–", "–"])
 
 
+    def test_typical_is_taken_at_the_seeds_a_systems_factors_ran_at(self):
+        # a's factor ran at seed 0 only, b's at seeds 0 and 1.
+        runs = [run("a", 0, 0.10), run("a", 1, 0.30), run("a", 2, 0.50),
+                run("a", 0, 0.12, "range"),
+                run("b", 0, 1.0), run("b", 1, 2.0), run("b", 0, 1.5, "clock"),
+                run("b", 1, 2.5, "clock")]
+        text = study_realism.tables(runs, None)
+        self.assertEqual(factor_row(text, "a")[1], "0.100")
+        self.assertEqual(factor_row(text, "b")[1], "1.500")
+        self.assertEqual(factor_row(text, "b")[2], "2.000 (+0.500; +0.500, +0.500)")
+
+
 class Rates(unittest.TestCase):
     def test_breaks_are_counted_over_every_seed_and_the_ladder_keeps_its_three(self):
         # Ten seeds under `typical`: seed 0 with false loops and a metre and a half off, seed
