@@ -287,7 +287,9 @@ def tables(runs, figure):
                     cells.append(f"{ate:.3f} ({d:+.3f}{each}){tail}")
                     if worst is None or d > worst[0]:
                         worst = (d, v)
-                most = f"{worst[1]} ({worst[0]:+.3f} m)" if worst and worst[0] > 0 else "–"
+                # A cost shown as +0.000 m is none.
+                most = (f"{worst[1]} ({worst[0]:+.3f} m)" if worst and worst[0] >= 0.0005
+                        else "–")
                 b = f"{statistics.median(base_ok):.3f}" if base_ok else "–"
                 out.append(f"| {s} | {b} | " + " | ".join(cells) + f" | {most} |")
             out.append("")

@@ -58,7 +58,7 @@ class FactorTable(unittest.TestCase):
         self.assertEqual(row[2], "0.150 (+0.050), 1 failed")
 
     def test_a_system_no_factor_touches_has_no_cost(self):
-        runs = [run("a", 0, 0.10), run("a", 0, 0.10, "range"), run("b", 0, 0.5)]
+        runs = [run("a", 0, 0.10), run("a", 0, 0.1004, "range"), run("b", 0, 0.5)]
         text = study_realism.tables(runs, None)
         self.assertEqual(factor_row(text, "a")[-1], "–")
         self.assertEqual(factor_row(text, "b")[2:], ["–", "–"])
