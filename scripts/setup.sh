@@ -4,6 +4,9 @@
 set -euo pipefail
 
 apt_missing=()
+# Waits for another apt (the other README command started beside this one, say) instead of
+# failing on its lock.
+apt_get() { apt-get -o DPkg::Lock::Timeout=600 "$@"; }
 need_pkg() { dpkg -s "$1" >/dev/null 2>&1 || apt_missing+=("$1"); }
 # A C toolchain for crates that build C (present on most Rust images).
 command -v cc >/dev/null 2>&1 || need_pkg gcc
@@ -28,8 +31,8 @@ for pkg in libgl1 libegl1 libopengl0 libsm6 libice6 libx11-6 libxext6; do need_p
 if ((${#apt_missing[@]})); then
   echo "setup: installing ${apt_missing[*]}" >&2
   export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq --no-install-recommends "${apt_missing[@]}"
+  apt_get update -qq
+  apt_get install -y -qq --no-install-recommends "${apt_missing[@]}"
 fi
 
 # Python tools of the tests in their own virtual environment (Debian's python forbids
@@ -40,7 +43,7 @@ vinebench_venv="${VINEBENCH_VENV:-$PWD/target/evo-venv}"
 if [ ! -x "$vinebench_venv/bin/python" ]; then
   if ! python3 -m venv "$vinebench_venv" >/dev/null 2>&1; then
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq && apt-get install -y -qq --no-install-recommends python3-venv
+    apt_get update -qq && apt_get install -y -qq --no-install-recommends python3-venv
     python3 -m venv "$vinebench_venv"
   fi
 fi
