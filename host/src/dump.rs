@@ -455,14 +455,15 @@ fn seconds(ns: i64) -> String {
     )
 }
 
-/// Length of the ground-truth path (sampled every 10 ms).
+/// Length of the route driven (sampled every 10 ms): the spline's, without the body's
+/// vibration, whose millimetre jitter would add to it.
 pub fn path_length(sim: &Simulation) -> f64 {
     let step = 10_000_000;
     let mut length = 0.0;
-    let mut prev = sim.trajectory.pose(0).translation.vector;
+    let mut prev = sim.trajectory.nominal_pose(0).translation.vector;
     let mut t = step;
     while t <= sim.duration_ns() {
-        let p = sim.trajectory.pose(t).translation.vector;
+        let p = sim.trajectory.nominal_pose(t).translation.vector;
         length += (p - prev).norm();
         prev = p;
         t += step;

@@ -148,7 +148,7 @@ pub fn draw(sim: &Simulation, path: &Path) -> anyhow::Result<()> {
     let step = 50_000_000;
     let driven: Vec<(f64, f64)> = (0..=sim.duration_ns() / step)
         .map(|k| {
-            let p = sim.trajectory.pose(k * step).translation.vector;
+            let p = sim.trajectory.nominal_pose(k * step).translation.vector;
             (p.x, p.y)
         })
         .collect();

@@ -8,7 +8,7 @@ use crate::config::{RaycasterKind, SensorsConfig, Side, SimConfig};
 use crate::error::SimError;
 use crate::raycast::{Bvh, ParryCaster, RayCaster};
 use crate::rng::stream;
-use crate::robot::{Route, Trajectory, drive};
+use crate::robot::{Route, Trajectory, Vibration, drive};
 use crate::sensors::{
     GroundTruthSensor, ImuSensor, LidarSensor, Message, RgbdFrame, RgbdSensor, Scan2dSensor,
     ScanSide, Scene, Sensor, WheelOdometrySensor,
@@ -113,7 +113,12 @@ impl Simulation {
             name: scenario.to_owned(),
             message: "the controller did not reach the end within an hour of simulated time".into(),
         })?;
-        let trajectory = Trajectory::from_samples(&samples, &world.terrain, &config.robot);
+        let trajectory = Trajectory::from_samples(&samples, &world.terrain, &config.robot)
+            .with_vibration(Vibration::new(
+                &config.robot.vibration,
+                config.sensors.imu.mount.xyz_m,
+                &mut stream(seed, "vibration"),
+            ));
         let caster: Box<dyn RayCaster> = match config.raycaster {
             RaycasterKind::Bvh => Box::new(Bvh::build(&world.mesh)),
             RaycasterKind::Parry => Box::new(ParryCaster::build(&world.mesh)),

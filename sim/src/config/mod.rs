@@ -177,6 +177,7 @@ impl SimConfig {
         positive("robot.max_accel_mps2", r.max_accel_mps2)?;
         positive("robot.max_yaw_accel_rps2", r.max_yaw_accel_rps2)?;
         positive("robot.lookahead_m", r.lookahead_m)?;
+        r.vibration.check()?;
         let s = &self.sensors;
         s.gnss.check()?;
         positive("sensors.ground_truth.rate_hz", s.ground_truth.rate_hz)?;
@@ -556,6 +557,107 @@ pub struct RobotConfig {
     pub lookahead_m: f64,
     /// Time the robot stands still before moving and after arriving.
     pub still_s: f64,
+    /// The body's vibration as the wheels roll (`robot::vibration`); none by default, and
+    /// then left out of a resolved world (which reads as it did before the key).
+    #[serde(skip_serializing_if = "VibrationConfig::is_off")]
+    pub vibration: VibrationConfig,
+}
+
+/// The body's vibration (`robot::vibration`): per motion, the RMS within each frequency
+/// band at the reference wheel speed. Empty RMS lists (the default): no vibration.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VibrationConfig {
+    /// Band edges, Hz, ascending: `n + 1` edges for `n` bands.
+    pub bands_hz: Vec<f64>,
+    /// Acceleration RMS per band along the base's x, y and z, m/s² (empty: none).
+    pub accel_rms_mps2: [Vec<f64>; 3],
+    /// Angular rate RMS per band about the base's x, y and z (roll, pitch, yaw), rad/s.
+    pub rate_rms_rps: [Vec<f64>; 3],
+    /// The wheel speed the RMS figures were measured at, m/s.
+    pub reference_speed_mps: f64,
+    /// The amplitude grows as (speed / reference)^exponent.
+    pub speed_exponent: f64,
+    /// Cosines per band in the synthesis (Shinozuka & Deodatis 1991).
+    pub components_per_band: usize,
+}
+
+impl Default for VibrationConfig {
+    fn default() -> Self {
+        Self {
+            bands_hz: vec![0.5, 2.0, 5.0, 10.0, 25.0],
+            accel_rms_mps2: Default::default(),
+            rate_rms_rps: Default::default(),
+            reference_speed_mps: 0.5,
+            speed_exponent: 1.0,
+            components_per_band: 8,
+        }
+    }
+}
+
+impl VibrationConfig {
+    /// Whether no band moves the body.
+    pub fn is_off(&self) -> bool {
+        !self.is_on()
+    }
+
+    /// Whether any band moves the body.
+    pub fn is_on(&self) -> bool {
+        self.accel_rms_mps2
+            .iter()
+            .chain(&self.rate_rms_rps)
+            .any(|bands| bands.iter().any(|&r| r != 0.0))
+    }
+
+    fn check(&self) -> Result<(), String> {
+        if !self.is_on() {
+            return Ok(());
+        }
+        let b = &self.bands_hz;
+        if b.len() < 2
+            || b[0] <= 0.0
+            || b.iter().any(|f| !f.is_finite())
+            || b.windows(2).any(|w| w[1] <= w[0])
+        {
+            return Err(format!(
+                "robot.vibration.bands_hz = {b:?}: need at least two ascending positive edges"
+            ));
+        }
+        for (name, lists) in [
+            ("accel_rms_mps2", &self.accel_rms_mps2),
+            ("rate_rms_rps", &self.rate_rms_rps),
+        ] {
+            for (axis, bands) in lists.iter().enumerate() {
+                if !bands.is_empty() && bands.len() != b.len() - 1 {
+                    return Err(format!(
+                        "robot.vibration.{name}[{axis}] has {} values: one per band ({}) or none",
+                        bands.len(),
+                        b.len() - 1
+                    ));
+                }
+                for (k, r) in bands.iter().enumerate() {
+                    non_negative(&format!("robot.vibration.{name}[{axis}][{k}]"), *r)?;
+                }
+            }
+        }
+        positive(
+            "robot.vibration.reference_speed_mps",
+            self.reference_speed_mps,
+        )?;
+        in_range(
+            "robot.vibration.speed_exponent",
+            self.speed_exponent,
+            0.0,
+            4.0,
+        )?;
+        if !(1..=256).contains(&self.components_per_band) {
+            return Err(format!(
+                "robot.vibration.components_per_band = {}: must be 1 to 256",
+                self.components_per_band
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for RobotConfig {
@@ -571,6 +673,7 @@ impl Default for RobotConfig {
             max_jerk_mps3: 4.0,
             lookahead_m: 0.8,
             still_s: 2.0,
+            vibration: VibrationConfig::default(),
         }
     }
 }

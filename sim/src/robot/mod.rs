@@ -4,7 +4,9 @@
 mod controller;
 mod route;
 mod trajectory;
+mod vibration;
 
 pub use controller::{CONTROL_DT_S, PlanarSample, drive};
 pub use route::{Leg, Route};
 pub use trajectory::{GRAVITY, KNOT_DT_S, State, Trajectory, rotation};
+pub use vibration::Vibration;

@@ -49,9 +49,10 @@ impl WheelOdometrySensor {
     }
 }
 
-/// True forward speed (along the base's x axis) and yaw rate (about its z axis) at `t_ns`.
+/// True forward speed (along the base's x axis) and yaw rate (about its z axis) at `t_ns`,
+/// as the wheels roll: the spline's, without the body's vibration on its tyres.
 fn true_rates(scene: &Scene<'_>, t_ns: i64) -> (f64, f64) {
-    let s = scene.trajectory.state(t_ns);
+    let s = scene.trajectory.nominal_state(t_ns);
     let forward = rotation(&s.world_from_base) * Vector3::x();
     (s.velocity.dot(&forward), s.omega_in_base.z)
 }
@@ -72,7 +73,7 @@ impl Sensor for WheelOdometrySensor {
         self.k += 1;
         let noisy = self.cfg.noise == NoiseProfile::Typical;
         let (speed_gain, yaw_gain, yaw_noise) = if noisy {
-            let pose = scene.trajectory.pose(stamp_ns);
+            let pose = scene.trajectory.nominal_pose(stamp_ns);
             let slope = scene
                 .world
                 .terrain

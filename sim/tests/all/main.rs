@@ -8,6 +8,7 @@ mod lidar_footprint;
 mod mount_error;
 mod paper_world;
 mod sim;
+mod vibration;
 
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
