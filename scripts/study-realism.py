@@ -253,7 +253,8 @@ def tables(runs, figure):
                 "against `typical` under the same seed: the median change, then each seed's in seed order. The factor "
                 "that costs a system most is the one with the largest median change; a "
                 "factor whose changes differ in sign between seeds is within the seeds' "
-                "spread.\n")
+                "spread. `transport`: each system paced at real time behind its own ROS "
+                "node's subscriber queues (transport-*.toml), with the messages it dropped.\n")
             out.append("| system | typical | " + " | ".join(variants) + " | costs most |")
             out.append("|---|---:|" + "---:|" * len(variants) + "---|")
             for s in systems:
@@ -273,6 +274,10 @@ def tables(runs, figure):
                     ok = [r for r in here if r["ok"]]
                     bad = len(here) - len(ok)
                     tail = f", {bad} failed" if bad else ""
+                    # A bounded queue's cost is also what it dropped.
+                    dropped = sum(r["dropped"] for r in ok)
+                    if dropped or any(r["variant"] == "transport" for r in ok):
+                        tail += f", {dropped} dropped"
                     if not ok:
                         cells.append(f"failed ({here[0]['status']})")
                         continue
