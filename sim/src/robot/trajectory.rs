@@ -122,14 +122,15 @@ impl Trajectory {
         };
         let [p, d, dd] = &ch;
         let (vx, vy, wz) = (d[X], d[Y], d[YAW]);
+        let (psi, dpsi, ddpsi) = (p[YAW], d[YAW], dd[YAW]);
+        let (s, c) = psi.sin_cos();
         let speed = 0.25
             * self
                 .wheels
                 .iter()
                 .map(|[ox, oy]| {
-                    let (sy, cy) = p[YAW].sin_cos();
                     // The contact's offset in the world, and its velocity v + ω × r.
-                    let (rx, ry) = (cy * ox - sy * oy, sy * ox + cy * oy);
+                    let (rx, ry) = (c * ox - s * oy, s * ox + c * oy);
                     (vx - wz * ry).hypot(vy + wz * rx)
                 })
                 .sum::<f64>();
@@ -139,8 +140,6 @@ impl Trajectory {
         }
         let t_s = t_ns.clamp(0, self.duration_ns) as f64 * 1e-9;
         let v = vibration.at(t_s);
-        let (psi, dpsi, ddpsi) = (p[YAW], d[YAW], dd[YAW]);
-        let (s, c) = psi.sin_cos();
         // R u and J R u (J the quarter turn) for a planar vector u.
         let r = |u: [f64; 2]| [c * u[0] - s * u[1], s * u[0] + c * u[1]];
         let j = |w: [f64; 2]| [-w[1], w[0]];
